@@ -1,0 +1,196 @@
+//! Volumes: where the voxels come from, what type they are, where they sit.
+//!
+//! ```text
+//! VolumeSource --header()--> VolumeHeader (sizes, type, geometry: no voxel memory yet)
+//!              --load()----> Volume        (data in its native type, limits checked first)
+//! ```
+//! Sources are NRRD files (attached or detached header, [`nrrd`]), headerless raw
+//! files ([`raw`]) and analytic fields sampled on a grid ([`synthetic`]). Nothing in
+//! this module knows about cameras or render modes.
+
+pub mod geometry;
+pub mod limits;
+pub mod nrrd;
+pub mod raw;
+pub mod scalar;
+pub mod stats;
+pub mod synthetic;
+
+use std::path::{Path, PathBuf};
+
+pub use geometry::Geometry;
+pub use limits::Limits;
+pub use scalar::{ScalarType, VolumeData, Voxel};
+pub use stats::Stats;
+pub use synthetic::Synthetic;
+
+/// Errors from reading or describing a volume, sorted by who is at fault.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum VolumeError {
+    /// The file system refused (missing file, permissions, ...).
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file concerned.
+        path: PathBuf,
+        /// What the OS said.
+        source: std::io::Error,
+    },
+    /// A header line is malformed or inconsistent (`line` is 1-based; 0 = not tied to a line).
+    #[error("{}{}: {message}", path.display(), line_suffix(*line))]
+    Header {
+        /// The header file.
+        path: PathBuf,
+        /// 1-based line number, or 0 when the problem concerns the header as a whole.
+        line: usize,
+        /// What is wrong and what was expected.
+        message: String,
+    },
+    /// The voxel data does not match its description (too short, too long, unparseable).
+    #[error("{}: {message}", path.display())]
+    Data {
+        /// The data file.
+        path: PathBuf,
+        /// What is wrong and what was expected.
+        message: String,
+    },
+    /// A feature of the format this reader does not implement.
+    #[error("{}: {message}", path.display())]
+    Unsupported {
+        /// The file concerned.
+        path: PathBuf,
+        /// What is not supported.
+        message: String,
+    },
+    /// The volume would need more memory than allowed.
+    #[error("{what} needs {} but the limit is {} (set --max-memory to raise it)",
+        bytes.map(human_bytes).unwrap_or_else(|| "more bytes than this machine can address".into()),
+        human_bytes(*limit))]
+    TooLarge {
+        /// What was being sized.
+        what: String,
+        /// Bytes needed, when that number fits in a u64.
+        bytes: Option<u64>,
+        /// The limit in force.
+        limit: u64,
+    },
+    /// Parameters of a raw or synthetic source that make no sense.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+fn line_suffix(line: usize) -> String {
+    if line == 0 {
+        String::new()
+    } else {
+        format!(":{line}")
+    }
+}
+
+/// Bytes as a short human string (`3.1 MiB`).
+pub fn human_bytes(b: u64) -> String {
+    const UNITS: [&str; 6] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB"];
+    let mut v = b as f64;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < UNITS.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{b} B")
+    } else {
+        format!("{v:.1} {}", UNITS[u])
+    }
+}
+
+/// Where a volume comes from, fully resolved (paths absolute).
+#[derive(Clone, Debug, PartialEq)]
+pub enum VolumeSource {
+    /// A `.nrrd` or `.nhdr` file.
+    Nrrd(PathBuf),
+    /// A headerless file described by the scene.
+    Raw(raw::RawSpec),
+    /// An analytic field sampled on a grid spanning [-1, 1]^3.
+    Synthetic(Synthetic),
+}
+
+/// What is known about a volume before its voxels are read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VolumeHeader {
+    /// Voxels along x, y, z (x fastest in memory).
+    pub sizes: [usize; 3],
+    /// Element type in memory.
+    pub scalar_type: ScalarType,
+    /// Index-to-world map.
+    pub geometry: Geometry,
+    /// Human-readable origin ("path/to/file.nrrd", "synthetic gaussian").
+    pub source: String,
+    /// Descriptive fields worth showing (`content`, `key:=value` pairs, units, ...).
+    pub fields: Vec<(String, String)>,
+}
+
+impl VolumeHeader {
+    /// Number of voxels.
+    pub fn voxel_count(&self) -> usize {
+        self.sizes.iter().product()
+    }
+
+    /// Bytes the voxels occupy in memory.
+    pub fn data_bytes(&self) -> u64 {
+        self.voxel_count() as u64 * self.scalar_type.size() as u64
+    }
+}
+
+/// A volume in memory: header plus native-typed voxels, x fastest.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Volume {
+    /// Sizes, type and geometry.
+    pub header: VolumeHeader,
+    /// The voxels.
+    pub data: VolumeData,
+}
+
+impl Volume {
+    /// Value at integer index (no bounds clamping), as `f64`.
+    pub fn value(&self, i: usize, j: usize, k: usize) -> f64 {
+        let [nx, ny, _] = self.header.sizes;
+        self.data.get_f64(i + nx * (j + ny * k))
+    }
+}
+
+impl VolumeSource {
+    /// Reads only what describes the volume: sizes, type, geometry.
+    pub fn header(&self) -> Result<VolumeHeader, VolumeError> {
+        match self {
+            VolumeSource::Nrrd(path) => nrrd::read_header(path)?.volume_header(path),
+            VolumeSource::Raw(spec) => spec.header(),
+            VolumeSource::Synthetic(s) => Ok(s.header()),
+        }
+    }
+
+    /// Reads the voxels, checking `limits` before allocating.
+    pub fn load(&self, limits: &Limits) -> Result<Volume, VolumeError> {
+        match self {
+            VolumeSource::Nrrd(path) => load_nrrd(path, limits),
+            VolumeSource::Raw(spec) => spec.load(limits),
+            VolumeSource::Synthetic(s) => s.load(limits),
+        }
+    }
+
+    /// A file path this source reads, if any.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            VolumeSource::Nrrd(p) => Some(p),
+            VolumeSource::Raw(r) => Some(&r.path),
+            VolumeSource::Synthetic(_) => None,
+        }
+    }
+}
+
+/// Reads a NRRD file as a 3D volume.
+pub fn load_nrrd(path: &Path, limits: &Limits) -> Result<Volume, VolumeError> {
+    let (header, data) = nrrd::read(path, limits)?;
+    let vh = header.volume_header(path)?;
+    debug_assert_eq!(vh.voxel_count(), data.len());
+    Ok(Volume { header: vh, data })
+}

@@ -1,0 +1,336 @@
+//! Scalar element types and the native-typed voxel storage.
+//!
+//! A volume keeps its data in the type it was stored in (an 8-bit volume costs one
+//! byte per voxel); samplers convert single voxels to `f32` when they read them.
+
+use std::fmt;
+
+/// The element type of a volume or image, with the names the NRRD format uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ScalarType {
+    /// signed 8-bit integer
+    Int8,
+    /// unsigned 8-bit integer
+    Uint8,
+    /// signed 16-bit integer
+    Int16,
+    /// unsigned 16-bit integer
+    Uint16,
+    /// signed 32-bit integer
+    Int32,
+    /// unsigned 32-bit integer
+    Uint32,
+    /// signed 64-bit integer
+    Int64,
+    /// unsigned 64-bit integer
+    Uint64,
+    /// IEEE 754 single precision
+    Float32,
+    /// IEEE 754 double precision
+    Float64,
+}
+
+impl ScalarType {
+    /// Every type, in NRRD's order.
+    pub const ALL: [ScalarType; 10] = [
+        ScalarType::Int8,
+        ScalarType::Uint8,
+        ScalarType::Int16,
+        ScalarType::Uint16,
+        ScalarType::Int32,
+        ScalarType::Uint32,
+        ScalarType::Int64,
+        ScalarType::Uint64,
+        ScalarType::Float32,
+        ScalarType::Float64,
+    ];
+
+    /// Size of one element in bytes.
+    pub fn size(self) -> usize {
+        match self {
+            ScalarType::Int8 | ScalarType::Uint8 => 1,
+            ScalarType::Int16 | ScalarType::Uint16 => 2,
+            ScalarType::Int32 | ScalarType::Uint32 | ScalarType::Float32 => 4,
+            ScalarType::Int64 | ScalarType::Uint64 | ScalarType::Float64 => 8,
+        }
+    }
+
+    /// The canonical NRRD name (`uint8`, `int16`, `float`, `double`, ...).
+    pub fn nrrd_name(self) -> &'static str {
+        match self {
+            ScalarType::Int8 => "int8",
+            ScalarType::Uint8 => "uint8",
+            ScalarType::Int16 => "int16",
+            ScalarType::Uint16 => "uint16",
+            ScalarType::Int32 => "int32",
+            ScalarType::Uint32 => "uint32",
+            ScalarType::Int64 => "int64",
+            ScalarType::Uint64 => "uint64",
+            ScalarType::Float32 => "float",
+            ScalarType::Float64 => "double",
+        }
+    }
+
+    /// Parses a type name: the short names used in scene files (`uint8`, `int16`,
+    /// `float32`, `float64`) and every alias the NRRD format defines (`uchar`,
+    /// `unsigned short int`, `longlong`, `float`, `double`, ...). Case-insensitive,
+    /// runs of whitespace count as one space.
+    pub fn parse(name: &str) -> Option<ScalarType> {
+        let norm: String = name
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ")
+            .to_ascii_lowercase();
+        Some(match norm.as_str() {
+            "signed char" | "int8" | "int8_t" | "i8" => ScalarType::Int8,
+            "uchar" | "unsigned char" | "uint8" | "uint8_t" | "u8" => ScalarType::Uint8,
+            "short" | "short int" | "signed short" | "signed short int" | "int16"
+            | "int16_t" | "i16" => ScalarType::Int16,
+            "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t"
+            | "u16" => ScalarType::Uint16,
+            "int" | "signed int" | "int32" | "int32_t" | "i32" => ScalarType::Int32,
+            "uint" | "unsigned int" | "uint32" | "uint32_t" | "u32" => ScalarType::Uint32,
+            "longlong" | "long long" | "long long int" | "signed long long"
+            | "signed long long int" | "int64" | "int64_t" | "i64" => ScalarType::Int64,
+            "ulonglong" | "unsigned long long" | "unsigned long long int" | "uint64"
+            | "uint64_t" | "u64" => ScalarType::Uint64,
+            "float" | "float32" | "f32" => ScalarType::Float32,
+            "double" | "float64" | "f64" => ScalarType::Float64,
+            _ => return None,
+        })
+    }
+
+    /// True for the two floating-point types.
+    pub fn is_float(self) -> bool {
+        matches!(self, ScalarType::Float32 | ScalarType::Float64)
+    }
+}
+
+impl fmt::Display for ScalarType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.nrrd_name())
+    }
+}
+
+/// A voxel element type: converts to `f64` exactly where the type allows, and
+/// decodes itself from bytes of either endianness.
+pub trait Voxel: Copy + Send + Sync + 'static {
+    /// The matching [`ScalarType`].
+    const TYPE: ScalarType;
+    /// The value as `f64` (exact for every type but 64-bit integers beyond 2^53).
+    fn to_f64(self) -> f64;
+    /// Decodes one element from `Self::TYPE.size()` bytes.
+    fn from_bytes(bytes: &[u8], little_endian: bool) -> Self;
+    /// Converts from `f64` by rounding and saturating (integers) or rounding (floats).
+    fn from_f64(v: f64) -> Self;
+}
+
+macro_rules! impl_voxel {
+    ($t:ty, $st:expr, int) => {
+        impl Voxel for $t {
+            const TYPE: ScalarType = $st;
+            #[inline(always)]
+            fn to_f64(self) -> f64 {
+                self as f64
+            }
+            #[inline]
+            fn from_bytes(bytes: &[u8], little_endian: bool) -> Self {
+                let arr: [u8; std::mem::size_of::<$t>()] = bytes[..std::mem::size_of::<$t>()]
+                    .try_into()
+                    .expect("caller passes at least size_of::<T>() bytes");
+                if little_endian {
+                    <$t>::from_le_bytes(arr)
+                } else {
+                    <$t>::from_be_bytes(arr)
+                }
+            }
+            #[inline]
+            fn from_f64(v: f64) -> Self {
+                // `as` saturates and maps NaN to 0.
+                v.round() as $t
+            }
+        }
+    };
+    ($t:ty, $st:expr, float) => {
+        impl Voxel for $t {
+            const TYPE: ScalarType = $st;
+            #[inline(always)]
+            fn to_f64(self) -> f64 {
+                self as f64
+            }
+            #[inline]
+            fn from_bytes(bytes: &[u8], little_endian: bool) -> Self {
+                let arr: [u8; std::mem::size_of::<$t>()] = bytes[..std::mem::size_of::<$t>()]
+                    .try_into()
+                    .expect("caller passes at least size_of::<T>() bytes");
+                if little_endian {
+                    <$t>::from_le_bytes(arr)
+                } else {
+                    <$t>::from_be_bytes(arr)
+                }
+            }
+            #[inline]
+            fn from_f64(v: f64) -> Self {
+                v as $t
+            }
+        }
+    };
+}
+
+impl_voxel!(i8, ScalarType::Int8, int);
+impl_voxel!(u8, ScalarType::Uint8, int);
+impl_voxel!(i16, ScalarType::Int16, int);
+impl_voxel!(u16, ScalarType::Uint16, int);
+impl_voxel!(i32, ScalarType::Int32, int);
+impl_voxel!(u32, ScalarType::Uint32, int);
+impl_voxel!(i64, ScalarType::Int64, int);
+impl_voxel!(u64, ScalarType::Uint64, int);
+impl_voxel!(f32, ScalarType::Float32, float);
+impl_voxel!(f64, ScalarType::Float64, float);
+
+/// Voxel values in their native type, x fastest.
+#[derive(Clone, Debug, PartialEq)]
+pub enum VolumeData {
+    /// `int8`
+    I8(Vec<i8>),
+    /// `uint8`
+    U8(Vec<u8>),
+    /// `int16`
+    I16(Vec<i16>),
+    /// `uint16`
+    U16(Vec<u16>),
+    /// `int32`
+    I32(Vec<i32>),
+    /// `uint32`
+    U32(Vec<u32>),
+    /// `int64`
+    I64(Vec<i64>),
+    /// `uint64`
+    U64(Vec<u64>),
+    /// `float`
+    F32(Vec<f32>),
+    /// `double`
+    F64(Vec<f64>),
+}
+
+/// Calls `$body` with `$v` bound to the typed `Vec` inside a [`VolumeData`].
+#[macro_export]
+macro_rules! with_volume_data {
+    ($data:expr, $v:ident => $body:expr) => {
+        match $data {
+            $crate::volume::VolumeData::I8($v) => $body,
+            $crate::volume::VolumeData::U8($v) => $body,
+            $crate::volume::VolumeData::I16($v) => $body,
+            $crate::volume::VolumeData::U16($v) => $body,
+            $crate::volume::VolumeData::I32($v) => $body,
+            $crate::volume::VolumeData::U32($v) => $body,
+            $crate::volume::VolumeData::I64($v) => $body,
+            $crate::volume::VolumeData::U64($v) => $body,
+            $crate::volume::VolumeData::F32($v) => $body,
+            $crate::volume::VolumeData::F64($v) => $body,
+        }
+    };
+}
+
+impl VolumeData {
+    /// The element type.
+    pub fn scalar_type(&self) -> ScalarType {
+        match self {
+            VolumeData::I8(_) => ScalarType::Int8,
+            VolumeData::U8(_) => ScalarType::Uint8,
+            VolumeData::I16(_) => ScalarType::Int16,
+            VolumeData::U16(_) => ScalarType::Uint16,
+            VolumeData::I32(_) => ScalarType::Int32,
+            VolumeData::U32(_) => ScalarType::Uint32,
+            VolumeData::I64(_) => ScalarType::Int64,
+            VolumeData::U64(_) => ScalarType::Uint64,
+            VolumeData::F32(_) => ScalarType::Float32,
+            VolumeData::F64(_) => ScalarType::Float64,
+        }
+    }
+
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        with_volume_data!(self, v => v.len())
+    }
+
+    /// True when there are no elements.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Bytes held in memory.
+    pub fn byte_len(&self) -> usize {
+        self.len() * self.scalar_type().size()
+    }
+
+    /// Element `i` as `f64`.
+    pub fn get_f64(&self, i: usize) -> f64 {
+        with_volume_data!(self, v => v[i].to_f64())
+    }
+
+    /// Decodes `count` elements of type `ty` from `bytes` (exactly `count * ty.size()`
+    /// bytes are read).
+    pub fn from_bytes(ty: ScalarType, bytes: &[u8], little_endian: bool) -> VolumeData {
+        fn dec<T: Voxel>(bytes: &[u8], le: bool) -> Vec<T> {
+            let n = T::TYPE.size();
+            bytes.chunks_exact(n).map(|c| T::from_bytes(c, le)).collect()
+        }
+        match ty {
+            ScalarType::Int8 => VolumeData::I8(dec(bytes, little_endian)),
+            ScalarType::Uint8 => VolumeData::U8(bytes.to_vec()),
+            ScalarType::Int16 => VolumeData::I16(dec(bytes, little_endian)),
+            ScalarType::Uint16 => VolumeData::U16(dec(bytes, little_endian)),
+            ScalarType::Int32 => VolumeData::I32(dec(bytes, little_endian)),
+            ScalarType::Uint32 => VolumeData::U32(dec(bytes, little_endian)),
+            ScalarType::Int64 => VolumeData::I64(dec(bytes, little_endian)),
+            ScalarType::Uint64 => VolumeData::U64(dec(bytes, little_endian)),
+            ScalarType::Float32 => VolumeData::F32(dec(bytes, little_endian)),
+            ScalarType::Float64 => VolumeData::F64(dec(bytes, little_endian)),
+        }
+    }
+
+    /// Builds data of type `ty` from `f64` values (used by the ASCII encoding and tests).
+    pub fn from_f64s(ty: ScalarType, values: &[f64]) -> VolumeData {
+        fn conv<T: Voxel>(values: &[f64]) -> Vec<T> {
+            values.iter().map(|&v| T::from_f64(v)).collect()
+        }
+        match ty {
+            ScalarType::Int8 => VolumeData::I8(conv(values)),
+            ScalarType::Uint8 => VolumeData::U8(conv(values)),
+            ScalarType::Int16 => VolumeData::I16(conv(values)),
+            ScalarType::Uint16 => VolumeData::U16(conv(values)),
+            ScalarType::Int32 => VolumeData::I32(conv(values)),
+            ScalarType::Uint32 => VolumeData::U32(conv(values)),
+            ScalarType::Int64 => VolumeData::I64(conv(values)),
+            ScalarType::Uint64 => VolumeData::U64(conv(values)),
+            ScalarType::Float32 => VolumeData::F32(conv(values)),
+            ScalarType::Float64 => VolumeData::F64(conv(values)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn aliases_parse() {
+        assert_eq!(ScalarType::parse("unsigned  short INT"), Some(ScalarType::Uint16));
+        assert_eq!(ScalarType::parse("uchar"), Some(ScalarType::Uint8));
+        assert_eq!(ScalarType::parse("longlong"), Some(ScalarType::Int64));
+        assert_eq!(ScalarType::parse("double"), Some(ScalarType::Float64));
+        assert_eq!(ScalarType::parse("block"), None);
+        for t in ScalarType::ALL {
+            assert_eq!(ScalarType::parse(t.nrrd_name()), Some(t));
+        }
+    }
+
+    #[test]
+    fn decode_endianness() {
+        let d = VolumeData::from_bytes(ScalarType::Int16, &[0x01, 0x02, 0xff, 0xff], false);
+        assert_eq!(d, VolumeData::I16(vec![0x0102, -1]));
+        let d = VolumeData::from_bytes(ScalarType::Uint16, &[0x01, 0x02], true);
+        assert_eq!(d, VolumeData::U16(vec![0x0201]));
+    }
+}

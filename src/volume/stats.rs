@@ -1,0 +1,161 @@
+//! Value statistics of a volume: range, mean and a histogram, ignoring non-finite
+//! voxels (which are counted separately).
+
+use rayon::prelude::*;
+
+use super::{VolumeData, Voxel};
+use crate::with_volume_data;
+
+/// Number of histogram bins in [`Stats::histogram`].
+pub const HISTOGRAM_BINS: usize = 64;
+
+/// Summary statistics of the finite voxels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stats {
+    /// Smallest finite value (NaN when there is none).
+    pub min: f64,
+    /// Largest finite value (NaN when there is none).
+    pub max: f64,
+    /// Mean of the finite values.
+    pub mean: f64,
+    /// Number of finite values.
+    pub finite: usize,
+    /// Number of NaN or infinite values.
+    pub non_finite: usize,
+    /// Counts over `HISTOGRAM_BINS` equal bins spanning `min..=max`.
+    pub histogram: Vec<u64>,
+}
+
+impl Stats {
+    /// Computes the statistics (two passes over the data, in parallel chunks whose
+    /// results are combined in a fixed order, so the result is deterministic).
+    pub fn of(data: &VolumeData) -> Stats {
+        with_volume_data!(data, v => stats_of(v))
+    }
+
+    /// The value at quantile `q` in [0, 1], read off the histogram (bin resolution).
+    pub fn quantile(&self, q: f64) -> f64 {
+        let total: u64 = self.histogram.iter().sum();
+        if total == 0 {
+            return f64::NAN;
+        }
+        let target = (q.clamp(0.0, 1.0) * total as f64).ceil().max(1.0) as u64;
+        let mut acc = 0;
+        let width = (self.max - self.min) / HISTOGRAM_BINS as f64;
+        for (b, &c) in self.histogram.iter().enumerate() {
+            acc += c;
+            if acc >= target {
+                return self.min + width * (b as f64 + 0.5);
+            }
+        }
+        self.max
+    }
+}
+
+const CHUNK: usize = 1 << 16;
+
+fn stats_of<T: Voxel>(v: &[T]) -> Stats {
+    #[derive(Clone, Copy)]
+    struct Acc {
+        min: f64,
+        max: f64,
+        sum: f64,
+        finite: usize,
+        non_finite: usize,
+    }
+    let parts: Vec<Acc> = v
+        .par_chunks(CHUNK)
+        .map(|c| {
+            let mut a = Acc {
+                min: f64::INFINITY,
+                max: f64::NEG_INFINITY,
+                sum: 0.0,
+                finite: 0,
+                non_finite: 0,
+            };
+            for &x in c {
+                let x = x.to_f64();
+                if x.is_finite() {
+                    a.min = a.min.min(x);
+                    a.max = a.max.max(x);
+                    a.sum += x;
+                    a.finite += 1;
+                } else {
+                    a.non_finite += 1;
+                }
+            }
+            a
+        })
+        .collect();
+    let mut t = Acc {
+        min: f64::INFINITY,
+        max: f64::NEG_INFINITY,
+        sum: 0.0,
+        finite: 0,
+        non_finite: 0,
+    };
+    for p in parts {
+        t.min = t.min.min(p.min);
+        t.max = t.max.max(p.max);
+        t.sum += p.sum;
+        t.finite += p.finite;
+        t.non_finite += p.non_finite;
+    }
+    if t.finite == 0 {
+        return Stats {
+            min: f64::NAN,
+            max: f64::NAN,
+            mean: f64::NAN,
+            finite: 0,
+            non_finite: t.non_finite,
+            histogram: vec![0; HISTOGRAM_BINS],
+        };
+    }
+    let (lo, hi) = (t.min, t.max);
+    let scale = if hi > lo {
+        HISTOGRAM_BINS as f64 / (hi - lo)
+    } else {
+        0.0
+    };
+    let histogram = v
+        .par_chunks(CHUNK)
+        .map(|c| {
+            let mut h = vec![0u64; HISTOGRAM_BINS];
+            for &x in c {
+                let x = x.to_f64();
+                if x.is_finite() {
+                    let b = (((x - lo) * scale) as usize).min(HISTOGRAM_BINS - 1);
+                    h[b] += 1;
+                }
+            }
+            h
+        })
+        .reduce(
+            || vec![0u64; HISTOGRAM_BINS],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    Stats {
+        min: lo,
+        max: hi,
+        mean: t.sum / t.finite as f64,
+        finite: t.finite,
+        non_finite: t.non_finite,
+        histogram,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ignores_non_finite() {
+        let s = Stats::of(&VolumeData::F32(vec![1.0, f32::NAN, 3.0, f32::INFINITY]));
+        assert_eq!((s.min, s.max, s.mean), (1.0, 3.0, 2.0));
+        assert_eq!((s.finite, s.non_finite), (2, 2));
+        assert_eq!(s.histogram.iter().sum::<u64>(), 2);
+    }
+}

@@ -1,0 +1,5 @@
+//! Integration tests, compiled as one binary (one module per topic).
+
+mod util;
+
+mod nrrd;

@@ -1,0 +1,1 @@
+//! NRRD reader/writer against files written by teem and pynrrd.

@@ -1,0 +1,39 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The project root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `../shared/data` beside the project, if present.
+pub fn shared_data() -> Option<PathBuf> {
+    let p = root().join("../shared/data");
+    p.is_dir().then_some(p)
+}
+
+/// Runs the built `volcast` binary with `args` in `dir`.
+pub fn volcast(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_volcast"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the volcast binary runs")
+}
+
+/// Asserts `|got - want| <= tol`, printing all three and a label on failure.
+#[macro_export]
+macro_rules! assert_close {
+    ($got:expr, $want:expr, $tol:expr, $($what:tt)+) => {{
+        let (g, w, t): (f64, f64, f64) = ($got as f64, $want as f64, $tol as f64);
+        assert!(
+            (g - w).abs() <= t,
+            "{}: got {g}, want {w}, |diff| {} > tolerance {t}",
+            format!($($what)+),
+            (g - w).abs()
+        );
+    }};
+}
