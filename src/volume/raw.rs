@@ -1,7 +1,12 @@
-//! Headerless raw volumes (STUB: to be implemented; the signatures are the contract).
+//! Headerless raw volumes: the scene gives sizes, type, byte order, spacing and offset;
+//! the file length must agree exactly (a headerless file of the wrong length almost
+//! always means wrong sizes or type). Decoding is shared with the NRRD raw encoding.
 
+use std::fs::File;
+use std::io::{BufReader, Seek, SeekFrom};
 use std::path::PathBuf;
 
+use super::nrrd::{read_elements, ReadError};
 use super::{Geometry, Limits, ScalarType, Volume, VolumeError, VolumeHeader};
 
 /// A raw file and the description the scene gives of it.
@@ -22,8 +27,10 @@ pub struct RawSpec {
 }
 
 impl RawSpec {
-    /// Sizes, type and geometry (checks the file's length, reads no voxels).
+    /// Sizes, type and geometry (checks the parameters and the file's length, reads no
+    /// voxels).
     pub fn header(&self) -> Result<VolumeHeader, VolumeError> {
+        self.data_start()?;
         Ok(VolumeHeader {
             sizes: self.sizes,
             scalar_type: self.scalar_type,
@@ -33,8 +40,206 @@ impl RawSpec {
         })
     }
 
-    /// Reads the voxels.
-    pub fn load(&self, _limits: &Limits) -> Result<Volume, VolumeError> {
-        Err(VolumeError::Invalid("raw reading is not implemented yet".into()))
+    /// Reads the voxels (limits checked before any allocation).
+    pub fn load(&self, limits: &Limits) -> Result<Volume, VolumeError> {
+        let header = self.header()?;
+        let (count, _) = limits.check(&self.sizes, self.scalar_type.size())?;
+        let start = self.data_start()?;
+        let io_err = |source| VolumeError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let mut r = BufReader::new(File::open(&self.path).map_err(io_err)?);
+        r.seek(SeekFrom::Start(start)).map_err(io_err)?;
+        let data = read_elements(&mut r, self.scalar_type, count, self.little_endian).map_err(
+            |e| match e {
+                // The length was checked, so this means the file changed meanwhile.
+                ReadError::Short { bytes } => VolumeError::Data {
+                    path: self.path.clone(),
+                    message: format!(
+                        "file ended after {bytes} bytes of data (did it change while being read?)"
+                    ),
+                },
+                ReadError::Io(source) => VolumeError::Io {
+                    path: self.path.clone(),
+                    source,
+                },
+            },
+        )?;
+        Ok(Volume { header, data })
+    }
+
+    /// Checks the parameters and the file length; returns where the data starts.
+    fn data_start(&self) -> Result<u64, VolumeError> {
+        if self.sizes.contains(&0) {
+            return Err(VolumeError::Invalid(format!(
+                "raw volume {}: sizes {:?} must all be at least 1",
+                self.path.display(),
+                self.sizes
+            )));
+        }
+        if !self.spacing.iter().all(|s| s.is_finite() && *s > 0.0) {
+            return Err(VolumeError::Invalid(format!(
+                "raw volume {}: spacing {:?} must be finite and positive",
+                self.path.display(),
+                self.spacing
+            )));
+        }
+        if self.offset < -1 {
+            return Err(VolumeError::Invalid(format!(
+                "raw volume {}: offset {} must be 0 or more, or -1 for data at the end of the file",
+                self.path.display(),
+                self.offset
+            )));
+        }
+        let (_, bytes) = Limits {
+            max_bytes: u64::MAX,
+        }
+        .check(&self.sizes, self.scalar_type.size())?;
+        let need = bytes as u64;
+        let len = std::fs::metadata(&self.path)
+            .map_err(|source| VolumeError::Io {
+                path: self.path.clone(),
+                source,
+            })?
+            .len();
+        let data_err = |message: String| VolumeError::Data {
+            path: self.path.clone(),
+            message,
+        };
+        let what = format!(
+            "{} × {} × {} {} = {need} bytes",
+            self.sizes[0], self.sizes[1], self.sizes[2], self.scalar_type
+        );
+        if self.offset == -1 {
+            return match len.checked_sub(need) {
+                Some(start) => Ok(start),
+                None => Err(data_err(format!(
+                    "file is {len} bytes, shorter than the {what} of data (offset -1 = the last bytes)"
+                ))),
+            };
+        }
+        let offset = self.offset as u64;
+        let expected = offset.saturating_add(need);
+        if len < expected {
+            return Err(data_err(format!(
+                "file is {len} bytes, but offset {offset} + {what} needs {expected}"
+            )));
+        }
+        if len > expected {
+            return Err(data_err(format!(
+                "file is {len} bytes, but offset {offset} + {what} is only {expected}: \
+                 check sizes and type; if the data really is the last {need} bytes, use offset {} (or -1)",
+                len - need
+            )));
+        }
+        Ok(offset)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::VolumeData;
+
+    fn spec(
+        dir: &tempfile::TempDir,
+        bytes: &[u8],
+        sizes: [usize; 3],
+        ty: ScalarType,
+        offset: i64,
+    ) -> RawSpec {
+        let path = dir.path().join("v.raw");
+        std::fs::write(&path, bytes).unwrap();
+        RawSpec {
+            path,
+            sizes,
+            scalar_type: ty,
+            little_endian: false,
+            spacing: [1.0, 2.0, 0.5],
+            offset,
+        }
+    }
+
+    #[test]
+    fn reads_big_endian_with_offset_and_tail() {
+        let dir = tempfile::tempdir().unwrap();
+        let bytes = [9, 9, 0, 1, 0, 2, 1, 0, 0xff, 0xff];
+        let s = spec(&dir, &bytes, [2, 2, 1], ScalarType::Int16, 2);
+        let v = s.load(&Limits::default()).unwrap();
+        assert_eq!(v.data, VolumeData::I16(vec![1, 2, 256, -1]));
+        assert_eq!(v.header.geometry, Geometry::from_spacing([1.0, 2.0, 0.5]));
+        let s = RawSpec { offset: -1, ..s };
+        assert_eq!(
+            s.load(&Limits::default()).unwrap().data,
+            VolumeData::I16(vec![1, 2, 256, -1])
+        );
+    }
+
+    #[test]
+    fn wrong_lengths_explain_themselves() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = spec(&dir, &[0; 10], [2, 2, 1], ScalarType::Int16, 0);
+        let e = s.header().unwrap_err().to_string();
+        assert!(e.contains("use offset 2"), "{e}");
+        let s = spec(&dir, &[0; 7], [2, 2, 1], ScalarType::Int16, 0);
+        let e = s.header().unwrap_err().to_string();
+        assert!(
+            e.contains("file is 7 bytes") && e.contains("needs 8"),
+            "{e}"
+        );
+        let s = RawSpec { offset: -1, ..s };
+        assert!(s.header().is_err());
+    }
+
+    #[test]
+    fn bad_parameters() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = spec(&dir, &[0; 8], [2, 2, 1], ScalarType::Int16, 0);
+        assert!(s.header().is_ok());
+        assert!(RawSpec {
+            sizes: [0, 2, 1],
+            ..s.clone()
+        }
+        .header()
+        .is_err());
+        assert!(RawSpec {
+            spacing: [1.0, f64::NAN, 1.0],
+            ..s.clone()
+        }
+        .header()
+        .is_err());
+        assert!(RawSpec {
+            spacing: [1.0, 0.0, 1.0],
+            ..s.clone()
+        }
+        .header()
+        .is_err());
+        assert!(RawSpec {
+            offset: -2,
+            ..s.clone()
+        }
+        .header()
+        .is_err());
+        let missing = RawSpec {
+            path: dir.path().join("nope.raw"),
+            ..s.clone()
+        };
+        assert!(matches!(missing.header(), Err(VolumeError::Io { .. })));
+        let huge = RawSpec {
+            sizes: [usize::MAX, 2, 1],
+            ..s
+        };
+        assert!(huge.header().is_err());
+    }
+
+    #[test]
+    fn limits_checked_before_reading() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = spec(&dir, &[0; 8], [2, 2, 1], ScalarType::Int16, 0);
+        assert!(matches!(
+            s.load(&Limits { max_bytes: 4 }),
+            Err(VolumeError::TooLarge { .. })
+        ));
     }
 }

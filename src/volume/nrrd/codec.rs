@@ -1,0 +1,508 @@
+//! Element decoding and encoding shared by every encoding (and by the headerless raw
+//! reader): bytes of either endianness → native-typed buffers that grow only as data
+//! arrives, hex and ASCII adapters that turn text into those bytes, and the inverse
+//! conversions for writing.
+
+use std::fmt::Display;
+use std::io::{self, BufRead, Read};
+
+use crate::volume::{ScalarType, VolumeData, Voxel};
+use crate::with_volume_data;
+
+/// Bytes read per step (a multiple of every element size).
+const CHUNK: usize = 1 << 16;
+/// Smallest first allocation, in elements.
+const MIN_CAPACITY: usize = 1 << 12;
+
+/// Why reading elements stopped.
+#[derive(Debug)]
+pub(crate) enum ReadError {
+    /// The stream ended after `bytes` bytes, before the requested elements.
+    Short {
+        /// Bytes of the requested piece that did arrive.
+        bytes: u64,
+    },
+    /// The stream failed (including corrupt compressed data and bad hex/ASCII text).
+    Io(io::Error),
+}
+
+/// A native-typed buffer filled from a byte stream, never allocating beyond `total`
+/// elements nor much beyond what has arrived.
+pub(crate) struct ElementSink {
+    data: VolumeData,
+    total: usize,
+    little_endian: bool,
+}
+
+fn empty(ty: ScalarType) -> VolumeData {
+    VolumeData::from_bytes(ty, &[], true)
+}
+
+/// Appends the elements in `bytes`, growing geometrically but never past `total`.
+fn push<T: Voxel>(v: &mut Vec<T>, bytes: &[u8], le: bool, total: usize) {
+    let size = std::mem::size_of::<T>();
+    let n = bytes.len() / size;
+    if v.capacity() - v.len() < n {
+        let want = (v.capacity() * 2)
+            .max(MIN_CAPACITY)
+            .min(total)
+            .max(v.len() + n);
+        v.reserve_exact(want - v.len());
+    }
+    v.extend(bytes.chunks_exact(size).map(|c| T::from_bytes(c, le)));
+}
+
+impl ElementSink {
+    /// An empty sink for `total` elements of `ty` stored with the given byte order.
+    pub fn new(ty: ScalarType, total: usize, little_endian: bool) -> ElementSink {
+        ElementSink {
+            data: empty(ty),
+            total,
+            little_endian,
+        }
+    }
+
+    fn push(&mut self, bytes: &[u8]) {
+        let (le, total) = (self.little_endian, self.total);
+        with_volume_data!(&mut self.data, v => push(v, bytes, le, total));
+    }
+
+    /// Reads exactly `count` more elements from `r`.
+    pub fn read(&mut self, r: &mut impl Read, count: usize) -> Result<(), ReadError> {
+        let size = self.data.scalar_type().size();
+        let mut remaining = count.saturating_mul(size);
+        let mut buf = vec![0u8; CHUNK.min(remaining.max(size))];
+        let mut fill = 0;
+        let mut done: u64 = 0;
+        while remaining > 0 {
+            let want = buf.len().min(remaining);
+            let n = match r.read(&mut buf[fill..want]) {
+                Ok(0) => {
+                    return Err(ReadError::Short {
+                        bytes: done + fill as u64,
+                    })
+                }
+                Ok(n) => n,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(ReadError::Io(e)),
+            };
+            fill += n;
+            let whole = fill / size * size;
+            self.push(&buf[..whole]);
+            buf.copy_within(whole..fill, 0);
+            fill -= whole;
+            remaining -= whole;
+            done += whole as u64;
+        }
+        Ok(())
+    }
+
+    /// The elements read so far.
+    pub fn finish(self) -> VolumeData {
+        self.data
+    }
+}
+
+/// Reads exactly `count` elements of `ty` from `r` (the shared raw decoder).
+pub(crate) fn read_elements(
+    r: &mut impl Read,
+    ty: ScalarType,
+    count: usize,
+    little_endian: bool,
+) -> Result<VolumeData, ReadError> {
+    let mut sink = ElementSink::new(ty, count, little_endian);
+    sink.read(r, count)?;
+    Ok(sink.finish())
+}
+
+fn invalid(message: String) -> io::Error {
+    io::Error::new(io::ErrorKind::InvalidData, message)
+}
+
+/// Two hex digits per byte, whitespace ignored.
+pub(super) struct HexReader<R> {
+    inner: R,
+    high: Option<u8>,
+    offset: u64,
+}
+
+impl<R: BufRead> HexReader<R> {
+    /// Decodes the hex text of `inner`.
+    pub fn new(inner: R) -> Self {
+        HexReader {
+            inner,
+            high: None,
+            offset: 0,
+        }
+    }
+}
+
+impl<R: BufRead> Read for HexReader<R> {
+    fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+        let mut n = 0;
+        while n < out.len() {
+            let buf = self.inner.fill_buf()?;
+            if buf.is_empty() {
+                if self.high.is_some() {
+                    return Err(invalid(
+                        "hex data ends in the middle of a byte (odd number of hex digits)".into(),
+                    ));
+                }
+                break;
+            }
+            let mut used = 0;
+            for &c in buf {
+                if n == out.len() {
+                    break;
+                }
+                used += 1;
+                if c.is_ascii_whitespace() {
+                    continue;
+                }
+                let Some(v) = (c as char).to_digit(16) else {
+                    return Err(invalid(format!(
+                        "hex data: {:?} at byte {} of the data is not a hex digit",
+                        c as char,
+                        self.offset + used as u64
+                    )));
+                };
+                match self.high.take() {
+                    Some(h) => {
+                        out[n] = (h << 4) | v as u8;
+                        n += 1;
+                    }
+                    None => self.high = Some(v as u8),
+                }
+            }
+            self.inner.consume(used);
+            self.offset += used as u64;
+        }
+        Ok(n)
+    }
+}
+
+/// Longest ASCII value accepted.
+const MAX_TOKEN: usize = 128;
+
+/// Whitespace- or comma-separated decimal values, turned into little-endian bytes of
+/// the element type (integers parsed exactly, floats rounded once).
+pub(super) struct AsciiReader<R> {
+    inner: R,
+    ty: ScalarType,
+    pending: [u8; 8],
+    pending_len: usize,
+    pending_pos: usize,
+    values: u64,
+    line: u64,
+    token: Vec<u8>,
+}
+
+impl<R: BufRead> AsciiReader<R> {
+    /// Parses values of type `ty` from `inner`.
+    pub fn new(inner: R, ty: ScalarType) -> Self {
+        AsciiReader {
+            inner,
+            ty,
+            pending: [0; 8],
+            pending_len: 0,
+            pending_pos: 0,
+            values: 0,
+            line: 1,
+            token: Vec::new(),
+        }
+    }
+
+    fn is_separator(c: u8) -> bool {
+        c.is_ascii_whitespace() || c == b','
+    }
+
+    /// The next token into `self.token`; false at end of input.
+    fn next_token(&mut self) -> io::Result<bool> {
+        self.token.clear();
+        loop {
+            let buf = self.inner.fill_buf()?;
+            if buf.is_empty() {
+                return Ok(!self.token.is_empty());
+            }
+            let mut used = 0;
+            let mut ended = false;
+            for &c in buf {
+                used += 1;
+                if Self::is_separator(c) {
+                    if c == b'\n' {
+                        self.line += 1;
+                    }
+                    if !self.token.is_empty() {
+                        ended = true;
+                        break;
+                    }
+                } else if self.token.len() == MAX_TOKEN {
+                    return Err(invalid(format!(
+                        "ascii data: value {} (line {} of the data) is longer than {MAX_TOKEN} characters",
+                        self.values + 1,
+                        self.line
+                    )));
+                } else {
+                    self.token.push(c);
+                }
+            }
+            self.inner.consume(used);
+            if ended {
+                return Ok(true);
+            }
+        }
+    }
+
+    fn bad_value(&self, why: &str) -> io::Error {
+        invalid(format!(
+            "ascii data: {:?} {why} (value {}, line {} of the data)",
+            String::from_utf8_lossy(&self.token),
+            self.values + 1,
+            self.line
+        ))
+    }
+}
+
+/// Parses an integer token exactly; `1.0`-style integral numbers are accepted too.
+fn parse_integer(token: &str) -> Option<i128> {
+    token.parse::<i128>().ok().or_else(|| {
+        let f = token.parse::<f64>().ok()?;
+        (f.is_finite() && f.fract() == 0.0 && f.abs() < 1.7e38).then_some(f as i128)
+    })
+}
+
+/// `token` as little-endian bytes of `ty`, or why not.
+fn ascii_value(ty: ScalarType, token: &str) -> Result<([u8; 8], usize), String> {
+    fn int<T: TryFrom<i128> + NativeBytes>(
+        token: &str,
+        name: &str,
+    ) -> Result<([u8; 8], usize), String> {
+        let v = parse_integer(token).ok_or_else(|| format!("is not an integer ({name})"))?;
+        let t = T::try_from(v).map_err(|_| format!("is out of range for {name}"))?;
+        Ok(t.bytes8(true))
+    }
+    match ty {
+        ScalarType::Int8 => int::<i8>(token, "int8"),
+        ScalarType::Uint8 => int::<u8>(token, "uint8"),
+        ScalarType::Int16 => int::<i16>(token, "int16"),
+        ScalarType::Uint16 => int::<u16>(token, "uint16"),
+        ScalarType::Int32 => int::<i32>(token, "int32"),
+        ScalarType::Uint32 => int::<u32>(token, "uint32"),
+        ScalarType::Int64 => int::<i64>(token, "int64"),
+        ScalarType::Uint64 => int::<u64>(token, "uint64"),
+        ScalarType::Float32 => token
+            .parse::<f32>()
+            .map(|v| v.bytes8(true))
+            .map_err(|_| "is not a number (float)".into()),
+        ScalarType::Float64 => token
+            .parse::<f64>()
+            .map(|v| v.bytes8(true))
+            .map_err(|_| "is not a number (double)".into()),
+    }
+}
+
+impl<R: BufRead> Read for AsciiReader<R> {
+    fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+        let mut n = 0;
+        while n < out.len() {
+            if self.pending_pos < self.pending_len {
+                let k = (self.pending_len - self.pending_pos).min(out.len() - n);
+                out[n..n + k]
+                    .copy_from_slice(&self.pending[self.pending_pos..self.pending_pos + k]);
+                self.pending_pos += k;
+                n += k;
+                continue;
+            }
+            if !self.next_token()? {
+                break;
+            }
+            let text =
+                std::str::from_utf8(&self.token).map_err(|_| self.bad_value("is not text"))?;
+            let (bytes, len) = ascii_value(self.ty, text).map_err(|why| self.bad_value(&why))?;
+            self.pending = bytes;
+            self.pending_len = len;
+            self.pending_pos = 0;
+            self.values += 1;
+        }
+        Ok(n)
+    }
+}
+
+/// Native bytes of an element, in either byte order.
+pub(super) trait NativeBytes: Copy + Display {
+    /// The element's bytes in the first `size` of 8.
+    fn bytes8(self, little_endian: bool) -> ([u8; 8], usize);
+}
+
+macro_rules! impl_native_bytes {
+    ($($t:ty),*) => {$(
+        impl NativeBytes for $t {
+            fn bytes8(self, little_endian: bool) -> ([u8; 8], usize) {
+                let b = if little_endian { self.to_le_bytes() } else { self.to_be_bytes() };
+                let mut out = [0u8; 8];
+                out[..b.len()].copy_from_slice(&b);
+                (out, b.len())
+            }
+        }
+    )*};
+}
+
+impl_native_bytes!(i8, u8, i16, u16, i32, u32, i64, u64, f32, f64);
+
+/// The data as stored bytes in the given byte order.
+pub(super) fn element_bytes(data: &VolumeData, little_endian: bool) -> Vec<u8> {
+    fn conv<T: NativeBytes>(v: &[T], le: bool) -> Vec<u8> {
+        let mut out = Vec::with_capacity(std::mem::size_of_val(v));
+        for &x in v {
+            let (b, n) = x.bytes8(le);
+            out.extend_from_slice(&b[..n]);
+        }
+        out
+    }
+    with_volume_data!(data, v => conv(v, little_endian))
+}
+
+/// The data as ASCII text, `per_line` values per line (Rust's shortest round-trip
+/// formatting; NaN and infinities as `NaN`, `inf`, `-inf`).
+pub(super) fn ascii_text(data: &VolumeData, per_line: usize) -> Vec<u8> {
+    fn conv<T: NativeBytes>(v: &[T], per_line: usize) -> Vec<u8> {
+        let mut out = String::new();
+        for row in v.chunks(per_line.max(1)) {
+            let line: Vec<String> = row.iter().map(|x| x.to_string()).collect();
+            out.push_str(&line.join(" "));
+            out.push('\n');
+        }
+        out.into_bytes()
+    }
+    with_volume_data!(data, v => conv(v, per_line))
+}
+
+/// Bytes as hex text, 32 bytes (64 digits) per line.
+pub(super) fn hex_text(bytes: &[u8]) -> Vec<u8> {
+    const DIGITS: &[u8; 16] = b"0123456789abcdef";
+    let mut out = Vec::with_capacity(bytes.len() * 2 + bytes.len() / 32 + 1);
+    for line in bytes.chunks(32) {
+        for &b in line {
+            out.push(DIGITS[usize::from(b >> 4)]);
+            out.push(DIGITS[usize::from(b & 15)]);
+        }
+        out.push(b'\n');
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A reader that returns one byte per call, to exercise partial elements.
+    struct Trickle<'a>(&'a [u8]);
+
+    impl Read for Trickle<'_> {
+        fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+            if self.0.is_empty() || out.is_empty() {
+                return Ok(0);
+            }
+            out[0] = self.0[0];
+            self.0 = &self.0[1..];
+            Ok(1)
+        }
+    }
+
+    #[test]
+    fn sink_handles_partial_elements_and_endianness() {
+        let bytes = [0x01, 0x02, 0x03, 0x04, 0xff, 0xfe, 0xfd, 0xfc];
+        let d = read_elements(&mut Trickle(&bytes), ScalarType::Int32, 2, false).unwrap();
+        assert_eq!(
+            d,
+            VolumeData::I32(vec![
+                0x01020304,
+                i32::from_be_bytes([0xff, 0xfe, 0xfd, 0xfc])
+            ])
+        );
+        let d = read_elements(&mut &bytes[..], ScalarType::Uint16, 4, true).unwrap();
+        assert_eq!(d, VolumeData::U16(vec![0x0201, 0x0403, 0xfeff, 0xfcfd]));
+    }
+
+    #[test]
+    fn sink_reports_short_data() {
+        match read_elements(&mut &[1u8, 2, 3][..], ScalarType::Uint16, 2, true) {
+            Err(ReadError::Short { bytes }) => assert_eq!(bytes, 3),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn huge_declared_count_allocates_little() {
+        // 2^40 elements declared, 10 bytes present: fails without a huge allocation.
+        let r = read_elements(&mut &[0u8; 10][..], ScalarType::Uint8, 1 << 40, true);
+        assert!(matches!(r, Err(ReadError::Short { bytes: 10 })));
+    }
+
+    #[test]
+    fn hex_reader() {
+        let mut r = HexReader::new(&b" 0a FF\n10"[..]);
+        let mut out = Vec::new();
+        r.read_to_end(&mut out).unwrap();
+        assert_eq!(out, vec![0x0a, 0xff, 0x10]);
+        let mut out = Vec::new();
+        assert!(HexReader::new(&b"0a1"[..]).read_to_end(&mut out).is_err());
+        let e = HexReader::new(&b"0a zz"[..])
+            .read_to_end(&mut out)
+            .unwrap_err();
+        assert!(e.to_string().contains("'z'"), "{e}");
+    }
+
+    #[test]
+    fn ascii_reader_types_and_errors() {
+        let text = b"1, -2\t3.0\n 1e2\n";
+        let d = read_elements(
+            &mut AsciiReader::new(&text[..], ScalarType::Int16),
+            ScalarType::Int16,
+            4,
+            true,
+        )
+        .unwrap();
+        assert_eq!(d, VolumeData::I16(vec![1, -2, 3, 100]));
+        let text = b"18446744073709551615 0";
+        let d = read_elements(
+            &mut AsciiReader::new(&text[..], ScalarType::Uint64),
+            ScalarType::Uint64,
+            2,
+            true,
+        )
+        .unwrap();
+        assert_eq!(d, VolumeData::U64(vec![u64::MAX, 0]));
+        let text = b"nan -inf 0.1 1e-45";
+        let d = read_elements(
+            &mut AsciiReader::new(&text[..], ScalarType::Float32),
+            ScalarType::Float32,
+            4,
+            true,
+        )
+        .unwrap();
+        let VolumeData::F32(v) = d else { panic!() };
+        assert!(v[0].is_nan() && v[1] == f32::NEG_INFINITY && v[2] == 0.1f32 && v[3] > 0.0);
+        for (bad, ty) in [
+            (&b"1 x2"[..], ScalarType::Uint8),
+            (b"1 256", ScalarType::Uint8),
+            (b"1 1.5", ScalarType::Int8),
+        ] {
+            let r = read_elements(&mut AsciiReader::new(bad, ty), ty, 2, true);
+            let Err(ReadError::Io(e)) = r else {
+                panic!("{r:?}")
+            };
+            assert!(e.to_string().contains("value 2, line 1"), "{e}");
+        }
+    }
+
+    #[test]
+    fn writers() {
+        let d = VolumeData::U16(vec![0x0102, 0xa0b0]);
+        assert_eq!(element_bytes(&d, true), vec![2, 1, 0xb0, 0xa0]);
+        assert_eq!(element_bytes(&d, false), vec![1, 2, 0xa0, 0xb0]);
+        assert_eq!(hex_text(&[0, 0xff, 0x10]), b"00ff10\n");
+        let d = VolumeData::F32(vec![0.1, f32::NAN, -f32::INFINITY, 3.0]);
+        assert_eq!(ascii_text(&d, 2), b"0.1 NaN\n-inf 3\n");
+    }
+}
