@@ -12,4 +12,15 @@
 //! (both in the project's shared folder); the README documents the whole format.
 #![warn(missing_docs)]
 
+pub mod error;
+pub mod output;
+pub mod plan;
+pub mod render;
+pub mod sample;
+pub mod scene;
+pub mod shade;
+pub mod transfer;
 pub mod volume;
+
+pub use error::Error;
+pub mod pipeline;

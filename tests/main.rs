@@ -2,4 +2,7 @@
 
 mod util;
 
+mod analytic;
+mod cli;
+mod determinism;
 mod nrrd;

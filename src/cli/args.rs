@@ -1,0 +1,153 @@
+//! The command-line interface, as clap definitions (also the source of `--help`).
+
+use std::ops::Range;
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+/// Render images of 3D scalar volumes from declarative TOML scene files.
+#[derive(Debug, Parser)]
+#[command(name = "volcast", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render a scene: one numbered image sequence per [[render]] pass.
+    Render(RenderArgs),
+    /// Validate a scene and print its plan without rendering.
+    Check(CheckArgs),
+    /// Describe a volume (a .nrrd/.nhdr file, or the volume of a scene .toml).
+    Info(InfoArgs),
+}
+
+/// Options shared by `render` and `check`.
+#[derive(Debug, Args)]
+pub struct SceneArgs {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// Output folder (instead of the scene's [image] out).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Frames to render: `A..B` (A up to but excluding B), `A..=B`, or one frame `N`.
+    #[arg(long, value_name = "A..B", value_parser = parse_frames)]
+    pub frames: Option<Range<usize>>,
+    /// Image size instead of the scene's, e.g. `128x128` (for previews).
+    #[arg(long, value_name = "WxH", value_parser = parse_size)]
+    pub size: Option<(usize, usize)>,
+    /// Worker threads (default: one per core). Output is identical for any value.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
+    /// Largest voxel buffer to allocate, e.g. `8G`, `512M` (default: 16G or 3/4 of RAM).
+    #[arg(long, value_name = "BYTES", value_parser = parse_bytes)]
+    pub max_memory: Option<u64>,
+}
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// No progress bar and no summary (errors are still printed).
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct CheckArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+}
+
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// A .nrrd or .nhdr file, or a scene .toml whose volume to describe.
+    pub volume: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Largest voxel buffer to allocate, e.g. `8G`, `512M`.
+    #[arg(long, value_name = "BYTES", value_parser = parse_bytes)]
+    pub max_memory: Option<u64>,
+}
+
+fn parse_frames(s: &str) -> Result<Range<usize>, String> {
+    let num = |t: &str| {
+        t.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("expected a frame number, got `{t}` (use A..B, A..=B or N)"))
+    };
+    let r = if let Some((a, b)) = s.split_once("..=") {
+        num(a)?..num(b)?.saturating_add(1)
+    } else if let Some((a, b)) = s.split_once("..") {
+        num(a)?..num(b)?
+    } else {
+        let n = num(s)?;
+        n..n.saturating_add(1)
+    };
+    if r.start >= r.end {
+        return Err(format!("`{s}` is an empty range of frames"));
+    }
+    Ok(r)
+}
+
+fn parse_size(s: &str) -> Result<(usize, usize), String> {
+    let err = || format!("expected WIDTHxHEIGHT such as 256x256, got `{s}`");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
+    let w: usize = w.trim().parse().map_err(|_| err())?;
+    let h: usize = h.trim().parse().map_err(|_| err())?;
+    if w == 0 || h == 0 || w > 32768 || h > 32768 {
+        return Err(format!(
+            "width and height must be from 1 to 32768, got `{s}`"
+        ));
+    }
+    Ok((w, h))
+}
+
+fn parse_bytes(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let (num, mult) = match t.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => {
+            let m = match c.to_ascii_uppercase() {
+                'K' => 1u64 << 10,
+                'M' => 1 << 20,
+                'G' => 1 << 30,
+                'T' => 1 << 40,
+                _ => return Err(format!("unknown unit in `{s}`: use K, M, G or T")),
+            };
+            (&t[..i], m)
+        }
+        _ => (t, 1),
+    };
+    let n: f64 = num
+        .parse()
+        .map_err(|_| format!("expected a size such as 8G or 512M, got `{s}`"))?;
+    if !(n > 0.0 && n.is_finite()) {
+        return Err(format!("expected a positive size, got `{s}`"));
+    }
+    Ok((n * mult as f64) as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames() {
+        assert_eq!(parse_frames("2..5"), Ok(2..5));
+        assert_eq!(parse_frames("2..=5"), Ok(2..6));
+        assert_eq!(parse_frames("7"), Ok(7..8));
+        assert!(parse_frames("5..2").is_err());
+        assert!(parse_frames("a..b").is_err());
+    }
+
+    #[test]
+    fn sizes_and_bytes() {
+        assert_eq!(parse_size("64x32"), Ok((64, 32)));
+        assert!(parse_size("64").is_err());
+        assert_eq!(parse_bytes("2G"), Ok(2 << 30));
+        assert_eq!(parse_bytes("1.5k"), Ok(1536));
+        assert!(parse_bytes("-1").is_err());
+    }
+}

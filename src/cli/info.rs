@@ -1,0 +1,131 @@
+//! `volcast info`: header, sizes, type, geometry, value range and a histogram summary.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::process::ExitCode;
+
+use volcast::volume::{human_bytes, Limits, Stats, VolumeSource};
+
+use super::args::InfoArgs;
+
+pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
+    let source = source_of(&a.volume)?;
+    let mut limits = Limits::default();
+    if let Some(m) = a.max_memory {
+        limits.max_bytes = m;
+    }
+    let volume = source.load(&limits)?;
+    let h = &volume.header;
+    let stats = Stats::of(&volume.data);
+    let sp = h.geometry.spacings();
+    let q = |x: f64| stats.quantile(x);
+    if a.json {
+        let json = serde_json::json!({
+            "source": h.source,
+            "sizes": h.sizes,
+            "type": h.scalar_type.nrrd_name(),
+            "bytes": h.data_bytes(),
+            "spacing": sp,
+            "origin": h.geometry.origin.to_array(),
+            "axes": h.geometry.axes.map(|a| a.to_array()),
+            "min": finite_or_null(stats.min),
+            "max": finite_or_null(stats.max),
+            "mean": finite_or_null(stats.mean),
+            "finite": stats.finite,
+            "non_finite": stats.non_finite,
+            "percentiles": { "1": finite_or_null(q(0.01)), "50": finite_or_null(q(0.5)), "99": finite_or_null(q(0.99)) },
+            "histogram": { "bins": stats.histogram.len(), "min": finite_or_null(stats.min), "max": finite_or_null(stats.max), "counts": stats.histogram },
+            "fields": h.fields.iter().map(|(k, v)| (k.clone(), serde_json::Value::String(v.clone()))).collect::<serde_json::Map<_, _>>(),
+        });
+        println!("{}", serde_json::to_string_pretty(&json)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    let mut s = String::new();
+    let [nx, ny, nz] = h.sizes;
+    writeln!(s, "source     {}", h.source)?;
+    writeln!(
+        s,
+        "sizes      {nx} x {ny} x {nz} ({} voxels)",
+        h.voxel_count()
+    )?;
+    writeln!(
+        s,
+        "type       {} ({} in memory)",
+        h.scalar_type,
+        human_bytes(h.data_bytes())
+    )?;
+    writeln!(s, "spacing    {} {} {}", sp[0], sp[1], sp[2])?;
+    let o = h.geometry.origin;
+    writeln!(s, "origin     {} {} {}", o.x, o.y, o.z)?;
+    let ax = h.geometry.axes;
+    writeln!(
+        s,
+        "axes       ({}, {}, {}) ({}, {}, {}) ({}, {}, {})",
+        ax[0].x, ax[0].y, ax[0].z, ax[1].x, ax[1].y, ax[1].z, ax[2].x, ax[2].y, ax[2].z
+    )?;
+    writeln!(
+        s,
+        "range      {} .. {} (mean {:.6})",
+        stats.min, stats.max, stats.mean
+    )?;
+    if stats.non_finite > 0 {
+        writeln!(
+            s,
+            "non-finite {} voxels (NaN or infinite; ignored above)",
+            stats.non_finite
+        )?;
+    }
+    writeln!(
+        s,
+        "percentile 1%: {:.6}  50%: {:.6}  99%: {:.6} (histogram bin centres)",
+        q(0.01),
+        q(0.5),
+        q(0.99)
+    )?;
+    writeln!(s, "histogram  {}", sparkline(&stats.histogram))?;
+    for (k, v) in &h.fields {
+        writeln!(s, "{k:<10} {v}")?;
+    }
+    print!("{s}");
+    Ok(ExitCode::SUCCESS)
+}
+
+fn finite_or_null(x: f64) -> serde_json::Value {
+    if x.is_finite() {
+        serde_json::json!(x)
+    } else {
+        serde_json::Value::Null
+    }
+}
+
+/// The volume a path names: a NRRD file, or the `[volume]` of a scene file.
+fn source_of(path: &Path) -> anyhow::Result<VolumeSource> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if ext == "toml" {
+        Ok(volcast::scene::load(path)?.volume.source)
+    } else {
+        Ok(VolumeSource::Nrrd(path.to_path_buf()))
+    }
+}
+
+/// A one-line histogram, log-scaled so small populations stay visible.
+fn sparkline(h: &[u64]) -> String {
+    const BARS: [char; 8] = ['▁', '▂', '▃', '▄', '▅', '▆', '▇', '█'];
+    let max = h.iter().copied().max().unwrap_or(0);
+    if max == 0 {
+        return String::new();
+    }
+    let lmax = (max as f64).ln_1p();
+    h.iter()
+        .map(|&c| {
+            if c == 0 {
+                ' '
+            } else {
+                BARS[(((c as f64).ln_1p() / lmax) * 7.0).round() as usize]
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,42 @@
+//! The library's error type: every failure, sorted by who is at fault.
+
+use std::path::PathBuf;
+
+use crate::scene::SceneError;
+use crate::volume::VolumeError;
+
+/// Any error of a volcast run.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The scene file is malformed or inconsistent.
+    #[error("{0}")]
+    Scene(#[from] SceneError),
+    /// The volume cannot be read or described.
+    #[error("{0}")]
+    Volume(#[from] VolumeError),
+    /// The scene and the volume (or the command line) do not fit together.
+    #[error("{scene}: {message}")]
+    Plan {
+        /// The scene file.
+        scene: PathBuf,
+        /// What is wrong and what was expected.
+        message: String,
+    },
+    /// An output file or folder could not be written.
+    #[error("writing {}: {source}", path.display())]
+    Output {
+        /// The file or folder.
+        path: PathBuf,
+        /// What the OS said.
+        source: std::io::Error,
+    },
+    /// An image could not be encoded.
+    #[error("encoding {}: {message}", path.display())]
+    Encode {
+        /// The file being written.
+        path: PathBuf,
+        /// The encoder's message.
+        message: String,
+    },
+}

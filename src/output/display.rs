@@ -1,0 +1,144 @@
+//! Turning film values into displayable colours in [0, 1].
+//!
+//! Intensity modes use one grey window `[lo, hi]` for a whole sequence (so a
+//! turntable does not flicker); depth shows near as bright; pixels without a value
+//! (NaN: the ray missed, or never crossed the threshold) show the background; RGBA
+//! films are composited over the background.
+
+use crate::render::Film;
+
+/// How film values become grey or colour.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DisplayKind {
+    /// Grey = `(v - lo) / (hi - lo)`.
+    Intensity(Window),
+    /// Grey = `(hi - v) / (hi - lo)`: near is bright.
+    Depth(Window),
+    /// RGBA (not premultiplied) over the background.
+    Rgba,
+}
+
+/// A grey window `[lo, hi]`, `lo < hi`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Window {
+    /// Value shown black.
+    pub lo: f64,
+    /// Value shown white.
+    pub hi: f64,
+}
+
+impl Window {
+    /// The range of the finite values of `films` (channel 0). A constant image gets
+    /// a window one unit wide ending at its value; no finite value gives `[0, 1]`.
+    pub fn of_films<'a>(films: impl IntoIterator<Item = &'a Film>) -> Window {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for f in films {
+            for px in f.data.chunks_exact(f.channels) {
+                let v = px[0] as f64;
+                if v.is_finite() {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+        }
+        Window::from_range(lo, hi)
+    }
+
+    /// A window from a value range, made valid as in [`Window::of_films`].
+    pub fn from_range(lo: f64, hi: f64) -> Window {
+        if !(lo.is_finite() && hi.is_finite()) {
+            Window { lo: 0.0, hi: 1.0 }
+        } else if lo < hi {
+            Window { lo, hi }
+        } else {
+            Window { lo: hi - 1.0, hi }
+        }
+    }
+
+    fn unit(&self, v: f64) -> f64 {
+        ((v - self.lo) / (self.hi - self.lo)).clamp(0.0, 1.0)
+    }
+}
+
+/// Converts a film to display values: 1 channel (grey) where the film is an
+/// intensity film and the background is grey, else 3 (RGB).
+pub fn to_display(film: &Film, kind: DisplayKind, background: [f32; 3]) -> Film {
+    let grey_bg = background[0] == background[1] && background[1] == background[2];
+    let channels = match kind {
+        DisplayKind::Rgba => 3,
+        _ if grey_bg => 1,
+        _ => 3,
+    };
+    let mut out = Film::new(film.width, film.height, channels);
+    for (src, dst) in film
+        .data
+        .chunks_exact(film.channels)
+        .zip(out.data.chunks_exact_mut(channels))
+    {
+        match kind {
+            DisplayKind::Rgba => {
+                let a = src[3].clamp(0.0, 1.0);
+                for c in 0..3 {
+                    let v = src[c].clamp(0.0, 1.0) * a + background[c] * (1.0 - a);
+                    dst[c] = if v.is_finite() { v } else { background[c] };
+                }
+            }
+            DisplayKind::Intensity(w) | DisplayKind::Depth(w) => {
+                let v = src[0] as f64;
+                if v.is_nan() {
+                    dst.copy_from_slice(&background[..channels]);
+                } else {
+                    let g = match kind {
+                        DisplayKind::Depth(_) => 1.0 - w.unit(v),
+                        _ => w.unit(v),
+                    } as f32;
+                    dst.fill(g);
+                }
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn window_and_background() {
+        let f = Film {
+            width: 3,
+            height: 1,
+            channels: 1,
+            data: vec![1.0, 3.0, f32::NAN],
+        };
+        let w = Window::of_films([&f]);
+        assert_eq!((w.lo, w.hi), (1.0, 3.0));
+        let d = to_display(&f, DisplayKind::Intensity(w), [0.25; 3]);
+        assert_eq!(d.data, vec![0.0, 1.0, 0.25]);
+        let d = to_display(&f, DisplayKind::Depth(w), [0.0, 0.0, 1.0]);
+        assert_eq!(d.channels, 3);
+        assert_eq!(d.data, vec![1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn rgba_over_background() {
+        let f = Film {
+            width: 1,
+            height: 1,
+            channels: 4,
+            data: vec![1.0, 0.0, 0.0, 0.5],
+        };
+        let d = to_display(&f, DisplayKind::Rgba, [0.0, 0.0, 1.0]);
+        assert_eq!(d.data, vec![0.5, 0.0, 0.5]);
+    }
+
+    #[test]
+    fn degenerate_windows() {
+        assert_eq!(Window::from_range(2.0, 2.0), Window { lo: 1.0, hi: 2.0 });
+        assert_eq!(
+            Window::from_range(f64::INFINITY, f64::NEG_INFINITY),
+            Window { lo: 0.0, hi: 1.0 }
+        );
+    }
+}

@@ -1,0 +1,328 @@
+//! The plan of a run: which views and passes will be rendered, what each pass must
+//! precompute, and how much memory that takes. Built from the scene and the
+//! volume's *header* (no voxels read), so `volcast check` can print it and a scene
+//! that cannot be rendered is rejected before anything is loaded or written.
+//!
+//! Each pass computes only what it needs: a gradient volume only for composite
+//! passes that shade or use a 2D transfer function (surface passes take gradients
+//! on the fly at their one hit per ray), prefiltered coefficients only for `cubic`
+//! interpolation, a transfer-function table only for composite passes, and a
+//! preview pass for the grey window only for intensity modes written as PNG without
+//! a fixed `window`.
+
+use std::fmt::Write as _;
+use std::ops::Range;
+
+use crate::error::Error;
+use crate::output::Eye;
+use crate::sample::{GradientMethod, Interpolation};
+use crate::scene::{Format, Layout, Mode, Scene, Transfer};
+use crate::volume::{human_bytes, VolumeHeader};
+
+/// Entries of a 1D transfer-function table.
+pub const TABLE_1D: usize = 4096;
+/// Entries per axis of a 2D transfer-function table.
+pub const TABLE_2D: usize = 256;
+
+/// Options of a run that are not part of the scene.
+#[derive(Clone, Debug, Default)]
+pub struct RunOptions {
+    /// Output folder instead of the scene's `out`.
+    pub out: Option<std::path::PathBuf>,
+    /// Frames to render (half-open), instead of all.
+    pub frames: Option<Range<usize>>,
+    /// Image size instead of the scene's (for previews and tests).
+    pub size: Option<(usize, usize)>,
+    /// Worker threads (`None` = one per core); reported in the plan.
+    pub threads: Option<usize>,
+}
+
+/// What a pass needs before its first ray.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PassPlan {
+    /// Sample spacing in world units.
+    pub dt: f64,
+    /// Gradient volume to precompute (3 x f32 per voxel), if any.
+    pub gradient_volume: Option<GradientMethod>,
+    /// Whether the pass samples prefiltered cubic coefficients.
+    pub cubic: bool,
+    /// Transfer-function table entries, if any.
+    pub table_entries: Option<usize>,
+    /// Whether the grey window comes from a preview pass.
+    pub auto_window: bool,
+}
+
+/// The plan of a run.
+#[derive(Clone, Debug)]
+pub struct Plan {
+    /// Frames to render.
+    pub frames: Range<usize>,
+    /// The eyes of each frame and their azimuth offsets (degrees).
+    pub eyes: Vec<(Eye, f64)>,
+    /// Image size of one view.
+    pub width: usize,
+    /// Image size of one view.
+    pub height: usize,
+    /// Output folder.
+    pub out: std::path::PathBuf,
+    /// One entry per scene pass.
+    pub passes: Vec<PassPlan>,
+    /// Size of the preview used for automatic grey windows.
+    pub preview: (usize, usize),
+    /// World length of one voxel of the smallest spacing.
+    pub voxel_length: f64,
+    /// Bytes of the voxels.
+    pub volume_bytes: u64,
+    /// Bytes of all precomputed volumes and tables.
+    pub precomputed_bytes: u64,
+    /// Bytes of the films in flight (one per thread, at most).
+    pub film_bytes: u64,
+    /// Worker threads assumed for the estimate.
+    pub threads: usize,
+    /// Rough number of field samples (ray length x pixels / step, upper bound).
+    pub samples_estimate: f64,
+}
+
+impl Plan {
+    /// Plans `scene` for a volume described by `header`.
+    pub fn build(scene: &Scene, header: &VolumeHeader, opts: &RunOptions) -> Result<Plan, Error> {
+        let fail = |message: String| Error::Plan {
+            scene: scene.path.clone(),
+            message,
+        };
+        let geometry = &header.geometry;
+        if !geometry.is_valid() {
+            return Err(fail(format!(
+                "the volume {} has degenerate axes (space directions or spacings are zero, non-finite or coplanar)",
+                header.source
+            )));
+        }
+        let total = scene.orbit.frames;
+        let frames = match &opts.frames {
+            None => 0..total,
+            Some(r) if r.start < r.end && r.end <= total => r.clone(),
+            Some(r) => {
+                return Err(fail(format!(
+                    "frames {}..{} are not within the orbit's {total} frames (0..{total})",
+                    r.start, r.end
+                )))
+            }
+        };
+        let eyes = match &scene.stereo {
+            None => vec![(Eye::Mono, 0.0)],
+            Some(s) => vec![
+                (Eye::Left, -s.angle_deg / 2.0),
+                (Eye::Right, s.angle_deg / 2.0),
+            ],
+        };
+        let (width, height) = opts.size.unwrap_or((scene.image.width, scene.image.height));
+        let voxel_length = geometry
+            .spacings()
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+        let voxels = header.voxel_count() as u64;
+        let mut gradient_methods = Vec::new();
+        let mut cubic = false;
+        let mut table_bytes = 0u64;
+        let passes: Vec<PassPlan> = scene
+            .passes
+            .iter()
+            .map(|p| {
+                let (gradient_volume, table_entries) = match &p.mode {
+                    Mode::Composite {
+                        transfer, shading, ..
+                    } => {
+                        let two_d = matches!(transfer, Transfer::TwoD(_));
+                        let g = (shading.is_some() || two_d).then(|| {
+                            shading
+                                .as_ref()
+                                .map_or(GradientMethod::Central, |s| s.gradient)
+                        });
+                        (g, Some(if two_d { TABLE_2D * TABLE_2D } else { TABLE_1D }))
+                    }
+                    _ => (None, None),
+                };
+                if let Some(g) = gradient_volume {
+                    if !gradient_methods.contains(&g) {
+                        gradient_methods.push(g);
+                    }
+                }
+                table_bytes += table_entries.map_or(0, |n| n as u64 * 16);
+                cubic |= p.interpolation == Interpolation::Cubic;
+                PassPlan {
+                    dt: p.step_voxels * voxel_length,
+                    gradient_volume,
+                    cubic: p.interpolation == Interpolation::Cubic,
+                    table_entries,
+                    auto_window: p.mode.is_intensity()
+                        && p.window.is_none()
+                        && scene.image.format != Format::Nrrd,
+                }
+            })
+            .collect();
+        let precomputed_bytes = voxels * 12 * gradient_methods.len() as u64
+            + if cubic { voxels * 4 } else { 0 }
+            + table_bytes;
+        let threads = opts
+            .threads
+            .unwrap_or_else(rayon::current_num_threads)
+            .max(1);
+        let channels_max = scene
+            .passes
+            .iter()
+            .map(|p| if p.mode.is_intensity() { 1 } else { 4 })
+            .max()
+            .unwrap_or(1);
+        let film_bytes = threads as u64
+            * eyes.len() as u64
+            * (width * height) as u64
+            * 4
+            * (channels_max as u64 + 3);
+        let diagonal = {
+            let c = geometry.corners(header.sizes);
+            (c[7] - c[0]).length()
+        };
+        let samples_estimate: f64 = passes
+            .iter()
+            .map(|p| (diagonal / p.dt + 2.0) * (width * height) as f64)
+            .sum::<f64>()
+            * (frames.len() * eyes.len()) as f64;
+        let out = opts.out.clone().unwrap_or_else(|| scene.image.out.clone());
+        Ok(Plan {
+            frames,
+            eyes,
+            width,
+            height,
+            out,
+            passes,
+            preview: (width.div_ceil(4).max(8), height.div_ceil(4).max(8)),
+            voxel_length,
+            volume_bytes: header.data_bytes(),
+            precomputed_bytes,
+            film_bytes,
+            threads,
+            samples_estimate,
+        })
+    }
+
+    /// Files written per frame and pass.
+    pub fn files_per_frame(scene: &Scene) -> usize {
+        match &scene.stereo {
+            Some(s) if s.layout == Layout::Pair => 2,
+            _ => 1,
+        }
+    }
+
+    /// Total estimated memory.
+    pub fn memory_bytes(&self) -> u64 {
+        self.volume_bytes + self.precomputed_bytes + self.film_bytes
+    }
+
+    /// A human-readable description (what `volcast check` prints).
+    pub fn describe(&self, scene: &Scene, header: &VolumeHeader) -> String {
+        let mut s = String::new();
+        let [nx, ny, nz] = header.sizes;
+        let sp = header.geometry.spacings();
+        let _ = writeln!(s, "scene    {}", scene.path.display());
+        let _ = writeln!(
+            s,
+            "volume   {} ({nx} x {ny} x {nz} {}, spacing {:.4} {:.4} {:.4}, {})",
+            header.source,
+            header.scalar_type,
+            sp[0],
+            sp[1],
+            sp[2],
+            human_bytes(header.data_bytes())
+        );
+        match scene.volume.window {
+            Some([lo, hi]) => {
+                let _ = writeln!(s, "window   [{lo}, {hi}] -> [0, 1]");
+            }
+            None => {
+                let _ = writeln!(
+                    s,
+                    "window   the data's min..max (read when the volume is loaded)"
+                );
+            }
+        }
+        let views = self.frames.len() * self.eyes.len();
+        let stereo = match &scene.stereo {
+            None => "mono".to_string(),
+            Some(st) => format!("stereo {:.1} deg, {:?}", st.angle_deg, st.layout).to_lowercase(),
+        };
+        let _ = writeln!(
+            s,
+            "frames   {}..{} of {} ({} deg sweep, {:.3} deg per frame), {stereo}: {views} views per pass",
+            self.frames.start,
+            self.frames.end,
+            scene.orbit.frames,
+            scene.orbit.degrees,
+            scene.orbit.degrees / scene.orbit.frames as f64
+        );
+        let _ = writeln!(
+            s,
+            "images   {} x {} {:?} -> {}/",
+            self.width,
+            self.height,
+            scene.image.format,
+            self.out.display()
+        );
+        let files = self.frames.len() * Self::files_per_frame(scene) * scene.passes.len();
+        let _ = writeln!(s, "passes   {} ({files} files)", scene.passes.len());
+        for (p, pp) in scene.passes.iter().zip(&self.passes) {
+            let _ = writeln!(
+                s,
+                "  {:<12} {:<9} step {} voxels ({:.4} world), {}",
+                p.name,
+                p.mode.name(),
+                p.step_voxels,
+                pp.dt,
+                p.interpolation.name()
+            );
+            let mut needs = Vec::new();
+            if let Some(g) = pp.gradient_volume {
+                needs.push(format!("{} gradient volume", g.name()));
+            }
+            if let Some(sh) = p.mode.shading() {
+                if pp.gradient_volume.is_none() {
+                    needs.push(format!(
+                        "{} gradients at the hit points",
+                        sh.gradient.name()
+                    ));
+                }
+                needs.push(
+                    format!("{:?} shading, material {}", sh.model, sh.material_name).to_lowercase(),
+                );
+            }
+            if pp.cubic {
+                needs.push("prefiltered cubic coefficients".into());
+            }
+            if let (Some(n), Mode::Composite { transfer_name, .. }) = (pp.table_entries, &p.mode) {
+                needs.push(format!("transfer table `{transfer_name}` ({n} entries)"));
+            }
+            if pp.auto_window {
+                needs.push(format!(
+                    "grey window from a {}x{} preview of every frame",
+                    self.preview.0, self.preview.1
+                ));
+            } else if let Some([lo, hi]) = p.window {
+                needs.push(format!("grey window [{lo}, {hi}]"));
+            }
+            if needs.is_empty() {
+                needs.push("nothing precomputed".into());
+            }
+            let _ = writeln!(s, "               {}", needs.join("; "));
+        }
+        let _ = writeln!(
+            s,
+            "memory   about {} (volume {}, precomputed {}, images in flight {} for {} threads)",
+            human_bytes(self.memory_bytes()),
+            human_bytes(self.volume_bytes),
+            human_bytes(self.precomputed_bytes),
+            human_bytes(self.film_bytes),
+            self.threads
+        );
+        let _ = write!(s, "samples  at most about {:.3e}", self.samples_estimate);
+        s
+    }
+}

@@ -1,0 +1,79 @@
+//! Emission-absorption compositing, front to back (REFERENCE.md
+//! "Emission-absorption and compositing"). Each segment between two sample
+//! positions is represented by the field at its midpoint; its opacity is corrected
+//! from the transfer function's reference step to the segment's own length, so the
+//! image converges as the step shrinks.
+
+use glam::Vec3;
+
+use super::crossing::normal_from_gradient;
+use super::{March, PixelRay, TransferTable};
+use crate::sample::Field;
+use crate::shade::Shader;
+use crate::transfer::correct_opacity;
+
+pub struct Params<'a> {
+    pub table: TransferTable<'a>,
+    pub shader: Option<&'a Shader>,
+    pub reference_step: f64,
+    pub early_stop: f32,
+    pub voxel_length: f64,
+}
+
+pub fn trace<F: Field>(march: &March, field: &F, ray: &PixelRay, p: Params) -> ([f32; 4], u64) {
+    let n = march.len();
+    let mut color = Vec3::ZERO;
+    let mut alpha = 0.0f32;
+    let mut samples = 0;
+    let to_eye = (-ray.dir).as_vec3();
+    for i in 1..n {
+        let (ta, tb) = (march.t(i - 1), march.t(i));
+        let length = tb - ta;
+        if length <= 0.0 {
+            continue;
+        }
+        let t = 0.5 * (ta + tb);
+        let pos = ray.index.at(t);
+        let v = field.value(pos);
+        samples += 1;
+        let mut grad = None;
+        let rgba = match p.table {
+            TransferTable::OneD(tab) => tab.lookup(v),
+            TransferTable::TwoD(tab) => {
+                let g = field.gradient(pos);
+                grad = Some(g);
+                tab.lookup(v, (g.length() * p.voxel_length) as f32)
+            }
+        };
+        let a = correct_opacity(rgba[3], (length / p.reference_step) as f32);
+        if a <= 0.0 {
+            continue;
+        }
+        let base = Vec3::new(rgba[0], rgba[1], rgba[2]);
+        let c = match p.shader {
+            None => base,
+            Some(shader) => {
+                let g = grad.unwrap_or_else(|| field.gradient(pos));
+                let normal = normal_from_gradient(g, ray.dir);
+                shader.shade(
+                    ray.world(t).as_vec3(),
+                    normal.map(|n| n.as_vec3()),
+                    to_eye,
+                    base,
+                )
+            }
+        };
+        let w = (1.0 - alpha) * a;
+        color += c * w;
+        alpha += w;
+        if alpha >= p.early_stop {
+            break;
+        }
+    }
+    if alpha > 0.0 {
+        let c = color / alpha;
+        ([c.x, c.y, c.z, alpha], samples)
+    } else {
+        ([0.0; 4], samples)
+    }
+}

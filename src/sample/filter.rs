@@ -1,0 +1,181 @@
+//! Whole-volume precomputations a pass may need: prefiltered cubic B-spline
+//! coefficients and a gradient volume. Only passes that use them build them.
+
+use rayon::prelude::*;
+
+use super::{GradientMethod, Normalize};
+use crate::volume::Voxel;
+
+/// The pole of the cubic B-spline prefilter, `sqrt(3) - 2` (Unser 1999).
+const POLE: f64 = -0.267_949_192_431_122_7;
+
+/// Coefficients `c` such that the cubic B-spline through `c` interpolates the
+/// normalised voxel values (mirror boundary conditions), as `f32`.
+pub fn prefilter_cubic<T: Voxel>(data: &[T], n: [usize; 3], norm: Normalize) -> Vec<f32> {
+    let mut c: Vec<f64> = data
+        .par_iter()
+        .map(|v| norm.apply(v.to_f64()) as f64)
+        .collect();
+    let [nx, ny, nz] = n;
+    // x lines are contiguous
+    c.par_chunks_mut(nx).for_each(|line| prefilter_line(line));
+    // y lines: one z slab at a time
+    c.par_chunks_mut(nx * ny).for_each(|slab| {
+        let mut line = vec![0.0; ny];
+        for i in 0..nx {
+            for (j, l) in line.iter_mut().enumerate() {
+                *l = slab[i + nx * j];
+            }
+            prefilter_line(&mut line);
+            for (j, l) in line.iter().enumerate() {
+                slab[i + nx * j] = *l;
+            }
+        }
+    });
+    // z lines: gather columns in parallel, then scatter back
+    let sxy = nx * ny;
+    let cols: Vec<Vec<f64>> = (0..sxy)
+        .into_par_iter()
+        .map(|ij| {
+            let mut line: Vec<f64> = (0..nz).map(|k| c[ij + sxy * k]).collect();
+            prefilter_line(&mut line);
+            line
+        })
+        .collect();
+    for (ij, col) in cols.iter().enumerate() {
+        for (k, v) in col.iter().enumerate() {
+            c[ij + sxy * k] = *v;
+        }
+    }
+    c.into_iter().map(|v| v as f32).collect()
+}
+
+/// In-place cubic B-spline prefilter of one line (causal + anti-causal recursion
+/// with exact mirror-boundary initialisation).
+fn prefilter_line(c: &mut [f64]) {
+    let n = c.len();
+    if n < 2 {
+        return;
+    }
+    let z = POLE;
+    let gain = (1.0 - z) * (1.0 - 1.0 / z);
+    c.iter_mut().for_each(|v| *v *= gain);
+    // causal initialisation: sum over the mirrored signal
+    let z_n1 = z.powi(n as i32 - 1);
+    let mut sum = c[0] + z_n1 * c[n - 1];
+    let mut zk = z;
+    let mut z2k = z_n1 * z_n1 / z;
+    for v in c.iter().take(n - 1).skip(1) {
+        sum += (zk + z2k) * v;
+        zk *= z;
+        z2k /= z;
+    }
+    c[0] = sum / (1.0 - z_n1 * z_n1);
+    for k in 1..n {
+        c[k] += z * c[k - 1];
+    }
+    c[n - 1] = (z / (z * z - 1.0)) * (c[n - 1] + z * c[n - 2]);
+    for k in (0..n - 1).rev() {
+        c[k] = z * (c[k + 1] - c[k]);
+    }
+}
+
+/// Index-space gradient of the normalised voxels at every voxel.
+pub fn gradient_volume<T: Voxel>(
+    data: &[T],
+    n: [usize; 3],
+    norm: Normalize,
+    method: GradientMethod,
+) -> Vec<[f32; 3]> {
+    let [nx, ny, nz] = n;
+    let get = |i: isize, j: isize, k: isize| {
+        let c = |x: isize, m: usize| x.clamp(0, m as isize - 1) as usize;
+        norm.apply(data[c(i, nx) + nx * (c(j, ny) + ny * c(k, nz))].to_f64())
+    };
+    (0..nx * ny * nz)
+        .into_par_iter()
+        .map(|idx| grid_gradient(method, n, [idx % nx, (idx / nx) % ny, idx / (nx * ny)], get))
+        .collect()
+}
+
+/// The gradient estimator at one voxel; `get` reads normalised voxels with clamped
+/// indices. Along each axis the difference spans two voxels inside the grid and one
+/// at its border (one-sided), and is zero on an axis of a single voxel.
+pub(super) fn grid_gradient(
+    method: GradientMethod,
+    n: [usize; 3],
+    [i, j, k]: [usize; 3],
+    get: impl Fn(isize, isize, isize) -> f32,
+) -> [f32; 3] {
+    let p = [i as isize, j as isize, k as isize];
+    let mut g = [0.0f32; 3];
+    for (axis, ga) in g.iter_mut().enumerate() {
+        let lo = (p[axis] - 1).max(0);
+        let hi = (p[axis] + 1).min(n[axis] as isize - 1);
+        if hi == lo {
+            continue;
+        }
+        let h = (hi - lo) as f32;
+        let at = |offset: [isize; 3], a: isize| {
+            let mut q = [p[0] + offset[0], p[1] + offset[1], p[2] + offset[2]];
+            q[axis] = a;
+            get(q[0], q[1], q[2])
+        };
+        *ga = match method {
+            GradientMethod::Central => (at([0; 3], hi) - at([0; 3], lo)) / h,
+            GradientMethod::Sobel => {
+                let (u, v) = match axis {
+                    0 => (1, 2),
+                    1 => (0, 2),
+                    _ => (0, 1),
+                };
+                let mut sum = 0.0;
+                for (du, wu) in [(-1isize, 1.0f32), (0, 2.0), (1, 1.0)] {
+                    for (dv, wv) in [(-1isize, 1.0f32), (0, 2.0), (1, 1.0)] {
+                        let mut off = [0isize; 3];
+                        off[u] = du;
+                        off[v] = dv;
+                        sum += wu * wv * (at(off, hi) - at(off, lo));
+                    }
+                }
+                sum / (16.0 * h)
+            }
+        };
+    }
+    g
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prefilter_then_bspline_interpolates_a_line() {
+        let orig = [0.1, 0.9, 0.3, 0.5, 0.2, 0.8];
+        let mut c = orig.to_vec();
+        prefilter_line(&mut c);
+        // B-spline at integer k: (c[k-1] + 4 c[k] + c[k+1]) / 6 with mirror ends
+        let n = c.len();
+        for k in 0..n {
+            let l = if k == 0 { c[1] } else { c[k - 1] };
+            let r = if k == n - 1 { c[n - 2] } else { c[k + 1] };
+            let v = (l + 4.0 * c[k] + r) / 6.0;
+            assert!((v - orig[k]).abs() < 1e-12, "{k}: {v} vs {}", orig[k]);
+        }
+    }
+
+    #[test]
+    fn gradient_volume_matches_on_the_fly() {
+        let n = [4, 3, 3];
+        let data: Vec<u8> = (0..36).map(|i| (i * 7 % 23) as u8).collect();
+        let norm = Normalize::new(0.0, 255.0);
+        for m in [GradientMethod::Central, GradientMethod::Sobel] {
+            let g = gradient_volume(&data, n, norm, m);
+            let get = |i: isize, j: isize, k: isize| {
+                let c = |x: isize, mm: usize| x.clamp(0, mm as isize - 1) as usize;
+                norm.apply(data[c(i, 4) + 4 * (c(j, 3) + 3 * c(k, 3))] as f64)
+            };
+            assert_eq!(g[5 + 4 * 4 + 1], grid_gradient(m, n, [2, 1, 1], get));
+        }
+    }
+}

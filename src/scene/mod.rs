@@ -1,0 +1,335 @@
+//! Scene files: parsing, validation and the resolved [`Scene`] the renderer uses.
+//!
+//! `schema.rs` mirrors what the user wrote (with spans); `resolve.rs` fills in
+//! defaults, checks every value and cross-reference, collects *all* problems and
+//! produces a [`Scene`] whose paths are absolute and whose values are in range. The
+//! contract for names and meanings is SCENES.md; the README documents every key.
+
+mod diag;
+mod resolve;
+mod schema;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::DVec3;
+
+pub use diag::{Diagnostic, SceneError};
+
+use crate::sample::{GradientMethod, Interpolation};
+use crate::shade::{Material, Model};
+use crate::transfer::{Transfer1D, Transfer2D};
+use crate::volume::VolumeSource;
+
+/// A validated scene: everything needed to plan and render, with defaults filled in.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The scene file.
+    pub path: PathBuf,
+    /// The file name without extension (`{scene}` in `out`).
+    pub name: String,
+    /// Where the voxels come from and how values are normalised.
+    pub volume: VolumeSpec,
+    /// The camera at frame 0.
+    pub camera: Camera,
+    /// The turntable.
+    pub orbit: Orbit,
+    /// Stereo views, when requested.
+    pub stereo: Option<Stereo>,
+    /// Image size, background, format and output folder.
+    pub image: ImageSpec,
+    /// The render passes, each writing its own numbered sequence.
+    pub passes: Vec<RenderPass>,
+    /// The light for shaded passes.
+    pub light: LightSpec,
+    /// Legal but suspicious settings, to print before rendering.
+    pub warnings: Vec<String>,
+}
+
+/// The volume source and its value window.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VolumeSpec {
+    /// File or synthetic field.
+    pub source: VolumeSource,
+    /// Data values mapped linearly to [0, 1]; `None` = the data's finite min..max.
+    pub window: Option<[f64; 2]>,
+}
+
+/// Perspective or parallel projection.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Projection {
+    /// Pinhole camera.
+    Perspective,
+    /// Parallel rays.
+    Orthographic,
+}
+
+/// The camera description of SCENES.md.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Projection.
+    pub projection: Projection,
+    /// Vertical field of view in degrees (perspective).
+    pub fov_deg: f64,
+    /// Degrees, counter-clockwise about `up` seen from above.
+    pub azimuth_deg: f64,
+    /// Degrees towards `up`.
+    pub elevation_deg: f64,
+    /// World up, also the orbit axis (unit length).
+    pub up: DVec3,
+    /// Image magnification.
+    pub zoom: f64,
+    /// Eye-target distance in world units (perspective); `None` frames the bounding sphere.
+    pub distance: Option<f64>,
+    /// Look-at point; `None` = the centre of the volume's box.
+    pub target: Option<DVec3>,
+}
+
+/// The turntable: `frames` views, frame k at `azimuth + k * degrees / frames`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Orbit {
+    /// Number of frames (at least 1).
+    pub frames: usize,
+    /// Total sweep in degrees.
+    pub degrees: f64,
+}
+
+impl Orbit {
+    /// Azimuth offset of frame `k`, in degrees.
+    pub fn azimuth_offset_deg(&self, k: usize) -> f64 {
+        k as f64 * self.degrees / self.frames as f64
+    }
+}
+
+/// How the two eyes of a stereo frame are stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layout {
+    /// Two files, `_left` and `_right`.
+    Pair,
+    /// One file: left image on the left (parallel viewing).
+    SideBySide,
+    /// One file: right image on the left (cross-eyed viewing).
+    CrossEyed,
+    /// One file: colour anaglyph.
+    Anaglyph,
+}
+
+/// Anaglyph glasses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Anaglyph {
+    /// Red left eye, cyan (green + blue) right eye.
+    RedCyan,
+    /// Red left eye, green right eye.
+    RedGreen,
+}
+
+/// Stereo settings (toe-in: each eye turned `angle/2` about `up` through the target).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stereo {
+    /// Degrees between the eyes.
+    pub angle_deg: f64,
+    /// Output layout.
+    pub layout: Layout,
+    /// Glasses, for the anaglyph layout.
+    pub anaglyph: Anaglyph,
+    /// Pixels between the halves of side-by-side and cross-eyed images.
+    pub gap: usize,
+}
+
+/// Image file format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// 8-bit PNG.
+    Png,
+    /// 16-bit PNG.
+    Png16,
+    /// Unquantised float32 NRRD.
+    Nrrd,
+}
+
+impl Format {
+    /// File extension.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Png | Format::Png16 => "png",
+            Format::Nrrd => "nrrd",
+        }
+    }
+}
+
+/// The `[image]` table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageSpec {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Colour where rays miss (linear RGB in [0, 1]).
+    pub background: [f32; 3],
+    /// File format.
+    pub format: Format,
+    /// Output folder, with `{scene}` already substituted (relative to the working directory).
+    pub out: PathBuf,
+}
+
+/// What an X-ray pass stores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum XrayOutput {
+    /// `mu` times the line integral of the normalised value (world units).
+    Integral,
+    /// `1 - exp(-integral)`.
+    Absorbed,
+    /// `exp(-integral)`.
+    Transmitted,
+}
+
+/// Shading settings of surface and shaded composite passes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Shading {
+    /// Reflection model.
+    pub model: Model,
+    /// Material coefficients.
+    pub material: Material,
+    /// Name of the material (for the plan).
+    pub material_name: String,
+    /// Gradient estimator for the normals.
+    pub gradient: GradientMethod,
+}
+
+/// A named transfer function.
+#[derive(Clone, Debug)]
+pub enum Transfer {
+    /// Over the normalised value.
+    OneD(Arc<Transfer1D>),
+    /// Over (value, gradient magnitude).
+    TwoD(Arc<Transfer2D>),
+}
+
+/// What a pass computes per ray, with its parameters.
+#[derive(Clone, Debug)]
+pub enum Mode {
+    /// Line integral / Beer-Lambert.
+    Xray {
+        /// Stored quantity.
+        output: XrayOutput,
+        /// Attenuation scale.
+        mu: f64,
+    },
+    /// Maximum intensity projection.
+    Mip,
+    /// Minimum intensity projection.
+    Minip,
+    /// Path-length weighted mean along the ray.
+    Average,
+    /// First local maximum above `threshold` (falls back to the MIP where the ray never exceeds it).
+    Lmip {
+        /// Normalised value.
+        threshold: f64,
+    },
+    /// Distance to the first crossing of `threshold`.
+    Depth {
+        /// Normalised value.
+        threshold: f64,
+    },
+    /// Shaded first crossing of `iso`.
+    Surface {
+        /// Normalised iso value.
+        iso: f64,
+        /// Shading settings.
+        shading: Shading,
+    },
+    /// Emission-absorption compositing, front to back.
+    Composite {
+        /// Transfer function name (for the plan and messages).
+        transfer_name: String,
+        /// The transfer function.
+        transfer: Transfer,
+        /// Optional shading of each sample.
+        shading: Option<Shading>,
+        /// The step (in voxels of the smallest spacing) the transfer function's alpha is defined for.
+        reference_step_voxels: f64,
+        /// Stop when the accumulated opacity reaches this (1 = never stop early).
+        early_stop: f64,
+    },
+}
+
+impl Mode {
+    /// The scene-file name of the mode.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Mode::Xray { .. } => "xray",
+            Mode::Mip => "mip",
+            Mode::Minip => "minip",
+            Mode::Average => "average",
+            Mode::Lmip { .. } => "lmip",
+            Mode::Depth { .. } => "depth",
+            Mode::Surface { .. } => "surface",
+            Mode::Composite { .. } => "composite",
+        }
+    }
+
+    /// True for modes whose image is one grey value per pixel.
+    pub fn is_intensity(&self) -> bool {
+        !matches!(self, Mode::Surface { .. } | Mode::Composite { .. })
+    }
+
+    /// The shading settings, for modes that shade.
+    pub fn shading(&self) -> Option<&Shading> {
+        match self {
+            Mode::Surface { shading, .. } => Some(shading),
+            Mode::Composite { shading, .. } => shading.as_ref(),
+            _ => None,
+        }
+    }
+}
+
+/// One `[[render]]` pass.
+#[derive(Clone, Debug)]
+pub struct RenderPass {
+    /// File name prefix.
+    pub name: String,
+    /// Mode and its parameters.
+    pub mode: Mode,
+    /// Sample spacing in voxels of the smallest axis spacing.
+    pub step_voxels: f64,
+    /// Reconstruction filter.
+    pub interpolation: Interpolation,
+    /// Grey window of intensity modes in PNG output; `None` = automatic.
+    pub window: Option<[f64; 2]>,
+}
+
+/// The `[light]` table.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSpec {
+    /// Kind and geometry.
+    pub kind: LightKindSpec,
+    /// RGB colour.
+    pub color: DVec3,
+    /// Scale; `None` for a point light = the squared distance to the target
+    /// (so that the light's irradiance at the target is `color`).
+    pub intensity: Option<f64>,
+}
+
+/// Light geometry as written in the scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightKindSpec {
+    /// A directional light from the camera.
+    Headlight,
+    /// Parallel light travelling along `direction` (unit).
+    Directional(DVec3),
+    /// A point light at `position`.
+    Point(DVec3),
+}
+
+/// Reads and validates a scene file.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| SceneError::whole_file(path, format!("cannot read the scene file: {e}")))?;
+    parse(&text, path)
+}
+
+/// Validates scene text as if it were the file at `path` (relative paths in the
+/// scene resolve against `path`'s folder).
+pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
+    resolve::resolve(text, path)
+}

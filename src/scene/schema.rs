@@ -1,0 +1,182 @@
+//! The scene file as written: serde structs mirroring the TOML, with the span of
+//! every value kept for error messages. Nothing here leaves `scene/`; `resolve.rs`
+//! turns it into the validated [`super::Scene`].
+//!
+//! Every table denies unknown keys; keys whose meaning depends on the render mode
+//! are all accepted by [`RenderTable`] and checked against the mode in `resolve.rs`.
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+use toml::Spanned;
+
+/// An optional value with its span.
+pub type Sp<T> = Option<Spanned<T>>;
+
+/// The whole file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub volume: Spanned<VolumeTable>,
+    pub camera: Option<Spanned<CameraTable>>,
+    pub orbit: Option<Spanned<OrbitTable>>,
+    pub stereo: Option<Spanned<StereoTable>>,
+    pub image: Option<Spanned<ImageTable>>,
+    pub render: Option<Vec<Spanned<RenderTable>>>,
+    #[serde(default)]
+    pub transfer: BTreeMap<String, Spanned<TransferTable>>,
+    #[serde(default)]
+    pub material: BTreeMap<String, Spanned<MaterialTable>>,
+    pub light: Option<Spanned<LightTable>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VolumeTable {
+    pub path: Sp<String>,
+    pub format: Sp<String>,
+    pub window: Sp<[f64; 2]>,
+    // raw
+    pub sizes: Sp<Vec<i64>>,
+    #[serde(rename = "type")]
+    pub ty: Sp<String>,
+    pub endian: Sp<String>,
+    pub spacing: Sp<[f64; 3]>,
+    pub offset: Sp<i64>,
+    // synthetic
+    pub synthetic: Sp<String>,
+    pub sigma: Sp<f64>,
+    pub radius: Sp<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraTable {
+    pub projection: Sp<String>,
+    pub fov: Sp<f64>,
+    pub azimuth: Sp<f64>,
+    pub elevation: Sp<f64>,
+    pub up: Sp<[f64; 3]>,
+    pub zoom: Sp<f64>,
+    pub distance: Sp<f64>,
+    pub target: Sp<[f64; 3]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OrbitTable {
+    pub frames: Sp<i64>,
+    pub degrees: Sp<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StereoTable {
+    pub angle: Sp<f64>,
+    pub layout: Sp<String>,
+    pub anaglyph: Sp<String>,
+    pub gap: Sp<i64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImageTable {
+    pub size: Sp<[i64; 2]>,
+    pub background: Sp<[f64; 3]>,
+    pub format: Sp<String>,
+    pub out: Sp<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderTable {
+    pub name: Sp<String>,
+    pub mode: Sp<String>,
+    pub step: Sp<f64>,
+    pub interpolation: Sp<String>,
+    pub window: Sp<[f64; 2]>,
+    // xray
+    pub output: Sp<String>,
+    pub mu: Sp<f64>,
+    // lmip, depth
+    pub threshold: Sp<f64>,
+    // surface
+    pub iso: Sp<f64>,
+    pub material: Sp<String>,
+    pub shading: Sp<String>,
+    pub gradient: Sp<String>,
+    // composite
+    pub transfer: Sp<String>,
+    pub reference_step: Sp<f64>,
+    pub early_stop: Sp<f64>,
+}
+
+impl RenderTable {
+    /// The keys present, with their spans, in a fixed order (for mode checks).
+    pub fn present_keys(&self) -> Vec<(&'static str, std::ops::Range<usize>)> {
+        fn k<T>(out: &mut Vec<(&'static str, std::ops::Range<usize>)>, n: &'static str, v: &Sp<T>) {
+            if let Some(s) = v {
+                out.push((n, s.span()));
+            }
+        }
+        let mut out = Vec::new();
+        k(&mut out, "output", &self.output);
+        k(&mut out, "mu", &self.mu);
+        k(&mut out, "threshold", &self.threshold);
+        k(&mut out, "iso", &self.iso);
+        k(&mut out, "material", &self.material);
+        k(&mut out, "shading", &self.shading);
+        k(&mut out, "gradient", &self.gradient);
+        k(&mut out, "transfer", &self.transfer);
+        k(&mut out, "reference_step", &self.reference_step);
+        k(&mut out, "early_stop", &self.early_stop);
+        k(&mut out, "window", &self.window);
+        out
+    }
+}
+
+/// One knot of a colour ramp: position and RGB.
+pub type ColorKnot = (f64, [f64; 3]);
+/// One knot of an opacity ramp: position and alpha.
+pub type AlphaKnot = (f64, f64);
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransferTable {
+    pub kind: Sp<String>,
+    pub interpolation: Sp<String>,
+    pub color: Sp<Vec<ColorKnot>>,
+    pub alpha: Sp<Vec<AlphaKnot>>,
+    pub widget: Option<Vec<Spanned<WidgetTable>>>,
+    pub gradient_max: Sp<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WidgetTable {
+    pub shape: Sp<String>,
+    pub value: Sp<[f64; 2]>,
+    pub gradient: Sp<[f64; 2]>,
+    pub color: Sp<[f64; 3]>,
+    pub alpha: Sp<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialTable {
+    pub ambient: Sp<[f64; 3]>,
+    pub diffuse: Sp<[f64; 3]>,
+    pub specular: Sp<[f64; 3]>,
+    pub shininess: Sp<f64>,
+    pub exponent: Sp<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightTable {
+    pub kind: Sp<String>,
+    pub direction: Sp<[f64; 3]>,
+    pub position: Sp<[f64; 3]>,
+    pub color: Sp<[f64; 3]>,
+    pub intensity: Sp<f64>,
+}

@@ -1,0 +1,193 @@
+//! The command line: every example scene renders, `check` prints a plan and writes
+//! nothing, `info` describes volumes, and the exit status tells success from failure.
+
+use std::path::{Path, PathBuf};
+
+use crate::util::{root, volcast};
+
+fn example_scenes() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(root().join("scenes"))
+        .expect("scenes/ exists")
+        .map(|e| e.expect("readable entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    v.sort();
+    assert!(v.len() >= 8, "the project ships example scenes");
+    v
+}
+
+fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Decodes every file of a folder (PNG with the image crate, NRRD by its magic and
+/// our reader) and returns how many there are.
+fn decode_all(dir: &Path) -> usize {
+    let mut n = 0;
+    for e in std::fs::read_dir(dir).expect("output folder exists") {
+        let p = e.expect("entry").path();
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(
+            !name.starts_with('.'),
+            "a temporary file was left behind: {}",
+            p.display()
+        );
+        match p.extension().and_then(|e| e.to_str()) {
+            Some("png") => {
+                image::open(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            }
+            Some("nrrd") => {
+                volcast::volume::nrrd::read(&p, &volcast::volume::Limits::default())
+                    .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            }
+            _ => panic!("unexpected file {}", p.display()),
+        }
+        n += 1;
+    }
+    n
+}
+
+#[test]
+fn every_example_scene_renders() {
+    let tmp = tempfile::tempdir().unwrap();
+    for scene in example_scenes() {
+        let name = scene.file_stem().unwrap().to_string_lossy().into_owned();
+        let out = tmp.path().join(&name);
+        let o = volcast(
+            tmp.path(),
+            &[
+                "render",
+                scene.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--size",
+                "40x32",
+                "--frames",
+                "0",
+                "--quiet",
+            ],
+        );
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        let text = std::fs::read_to_string(&scene).unwrap();
+        let passes = text.matches("[[render]]").count().max(1);
+        let per_pass = if text.contains("layout = \"pair\"") {
+            2
+        } else {
+            1
+        };
+        assert_eq!(decode_all(&out), passes * per_pass, "{name}: files written");
+        let o = volcast(tmp.path(), &["check", scene.to_str().unwrap()]);
+        assert!(o.status.success(), "check {name}: {}", stderr(&o));
+    }
+}
+
+#[test]
+fn check_prints_the_plan_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = root().join("scenes/composite_engine_bone.toml");
+    let o = volcast(tmp.path(), &["check", scene.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    for needle in [
+        "frames",
+        "transfer table `bone`",
+        "blinnphong shading",
+        "gradient volume",
+        "memory",
+        "ok",
+    ] {
+        assert!(out.contains(needle), "`{needle}` missing from:\n{out}");
+    }
+    // a MIP computes neither gradients nor tables
+    let scene = root().join("scenes/mip_head.toml");
+    let o = volcast(tmp.path(), &["check", scene.to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        !out.contains("gradient") && !out.contains("transfer table"),
+        "{out}"
+    );
+    assert_eq!(
+        std::fs::read_dir(tmp.path()).unwrap().count(),
+        0,
+        "check wrote files"
+    );
+}
+
+#[test]
+fn render_writes_numbered_sequences() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(
+        tmp.path().join("s.toml"),
+        "[volume]\nsynthetic = \"ball\"\nsizes = [16, 16, 16]\n[orbit]\nframes = 4\n[image]\nsize = [16, 16]\n\
+         [[render]]\nmode = \"mip\"\n[[render]]\nname = \"d\"\nmode = \"depth\"\n",
+    )
+    .unwrap();
+    let o = volcast(tmp.path(), &["render", "s.toml"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut names: Vec<String> = std::fs::read_dir(tmp.path().join("out/s"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            "d_0000.png",
+            "d_0001.png",
+            "d_0002.png",
+            "d_0003.png",
+            "mip_0000.png",
+            "mip_0001.png",
+            "mip_0002.png",
+            "mip_0003.png"
+        ]
+    );
+    // the summary goes to stderr (no terminal here, so no progress bar)
+    assert!(stderr(&o).contains("8 files"), "{}", stderr(&o));
+}
+
+#[test]
+fn info_describes_a_volume() {
+    let tmp = tempfile::tempdir().unwrap();
+    let engine = root().join("data/ct_engine.nrrd");
+    let o = volcast(tmp.path(), &["info", engine.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    assert_eq!(v["sizes"], serde_json::json!([256, 256, 110]));
+    assert_eq!(v["type"], "uint8");
+    assert_eq!(v["spacing"], serde_json::json!([1.0, 1.0, 1.0]));
+    // min/max as `teem-unu minmax ct_engine.nrrd` prints them: 0 and 255
+    assert_eq!(v["min"], 0.0);
+    assert_eq!(v["max"], 255.0);
+    assert!(v["mean"].as_f64().unwrap() > 0.0);
+    let o = volcast(tmp.path(), &["info", engine.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("256 x 256 x 110") && text.contains("histogram"),
+        "{text}"
+    );
+    // a scene's synthetic volume
+    std::fs::write(
+        tmp.path().join("g.toml"),
+        "[volume]\nsynthetic = \"gaussian\"\nsizes = [9, 9, 9]\n",
+    )
+    .unwrap();
+    let o = volcast(tmp.path(), &["info", "g.toml", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    assert_eq!(v["max"], 1.0);
+}
+
+#[test]
+fn missing_files_fail_with_a_message() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = volcast(tmp.path(), &["render", "nope.toml"]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("nope.toml") && stderr(&o).contains("cannot read"),
+        "{}",
+        stderr(&o)
+    );
+    let o = volcast(tmp.path(), &["info", "nope.nrrd"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("nope.nrrd"), "{}", stderr(&o));
+}
