@@ -85,6 +85,17 @@ fn check_data_files(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
     let h = &p.header;
     let line = p.line("data file");
     let dim = h.dimension();
+    let stdin = match &h.data_file {
+        DataFile::Single(name) => name == "-",
+        DataFile::List { names, .. } => names.iter().any(|n| n == "-"),
+        _ => false,
+    };
+    if stdin {
+        return Err(VolumeError::Unsupported {
+            path: path.to_path_buf(),
+            message: format!("line {line}: data file \"-\" (standard input) is not supported"),
+        });
+    }
     let subdim = match &h.data_file {
         DataFile::Attached | DataFile::Single(_) => return Ok(()),
         DataFile::Pattern { subdim, .. } | DataFile::List { subdim, .. } => {

@@ -3,7 +3,6 @@
 //! arrives, hex and ASCII adapters that turn text into those bytes, and the inverse
 //! conversions for writing.
 
-use std::fmt::Display;
 use std::io::{self, BufRead, Read};
 
 use crate::volume::{ScalarType, VolumeData, Voxel};
@@ -182,7 +181,7 @@ impl<R: BufRead> Read for HexReader<R> {
 }
 
 /// Longest ASCII value accepted.
-const MAX_TOKEN: usize = 128;
+const MAX_TOKEN: usize = 1024;
 
 /// Whitespace- or comma-separated decimal values, turned into little-endian bytes of
 /// the element type (integers parsed exactly, floats rounded once).
@@ -328,14 +327,16 @@ impl<R: BufRead> Read for AsciiReader<R> {
     }
 }
 
-/// Native bytes of an element, in either byte order.
-pub(super) trait NativeBytes: Copy + Display {
+/// Native bytes of an element, in either byte order, and its ASCII form.
+pub(super) trait NativeBytes: Copy {
     /// The element's bytes in the first `size` of 8.
     fn bytes8(self, little_endian: bool) -> ([u8; 8], usize);
+    /// The shortest text that parses back to the same value.
+    fn ascii(self) -> String;
 }
 
 macro_rules! impl_native_bytes {
-    ($($t:ty),*) => {$(
+    ($fmt:literal: $($t:ty),*) => {$(
         impl NativeBytes for $t {
             fn bytes8(self, little_endian: bool) -> ([u8; 8], usize) {
                 let b = if little_endian { self.to_le_bytes() } else { self.to_be_bytes() };
@@ -343,11 +344,16 @@ macro_rules! impl_native_bytes {
                 out[..b.len()].copy_from_slice(&b);
                 (out, b.len())
             }
+            fn ascii(self) -> String {
+                format!($fmt, self)
+            }
         }
     )*};
 }
 
-impl_native_bytes!(i8, u8, i16, u16, i32, u32, i64, u64, f32, f64);
+impl_native_bytes!("{}": i8, u8, i16, u16, i32, u32, i64, u64);
+// Debug: exponent notation for very large and small magnitudes (Display never uses it).
+impl_native_bytes!("{:?}": f32, f64);
 
 /// The data as stored bytes in the given byte order.
 pub(super) fn element_bytes(data: &VolumeData, little_endian: bool) -> Vec<u8> {
@@ -363,12 +369,13 @@ pub(super) fn element_bytes(data: &VolumeData, little_endian: bool) -> Vec<u8> {
 }
 
 /// The data as ASCII text, `per_line` values per line (Rust's shortest round-trip
-/// formatting; NaN and infinities as `NaN`, `inf`, `-inf`).
+/// formatting, `1.0e300`-style for extreme floats; NaN and infinities as `NaN`, `inf`,
+/// `-inf`).
 pub(super) fn ascii_text(data: &VolumeData, per_line: usize) -> Vec<u8> {
     fn conv<T: NativeBytes>(v: &[T], per_line: usize) -> Vec<u8> {
         let mut out = String::new();
         for row in v.chunks(per_line.max(1)) {
-            let line: Vec<String> = row.iter().map(|x| x.to_string()).collect();
+            let line: Vec<String> = row.iter().map(|x| x.ascii()).collect();
             out.push_str(&line.join(" "));
             out.push('\n');
         }
@@ -503,6 +510,8 @@ mod tests {
         assert_eq!(element_bytes(&d, false), vec![1, 2, 0xa0, 0xb0]);
         assert_eq!(hex_text(&[0, 0xff, 0x10]), b"00ff10\n");
         let d = VolumeData::F32(vec![0.1, f32::NAN, -f32::INFINITY, 3.0]);
-        assert_eq!(ascii_text(&d, 2), b"0.1 NaN\n-inf 3\n");
+        assert_eq!(ascii_text(&d, 2), b"0.1 NaN\n-inf 3.0\n");
+        let d = VolumeData::F64(vec![f64::MAX, 5e-324]);
+        assert_eq!(ascii_text(&d, 2), b"1.7976931348623157e308 5e-324\n");
     }
 }

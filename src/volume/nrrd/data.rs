@@ -168,7 +168,14 @@ pub(super) fn read_data(
     limits: &Limits,
 ) -> Result<VolumeData, VolumeError> {
     let elem = h.scalar_type.size();
-    let (count, _) = limits.check(&h.sizes, elem)?;
+    let (count, _) = limits.check(&h.sizes, elem).map_err(|e| match e {
+        VolumeError::TooLarge { what, bytes, limit } => VolumeError::TooLarge {
+            what: format!("{}: {what}", header_path.display()),
+            bytes,
+            limit,
+        },
+        other => other,
+    })?;
     // check_header made sure the count divides evenly and is at most `count`.
     let files = usize::try_from(file_count(&h.data_file))
         .unwrap_or(usize::MAX)
@@ -234,13 +241,10 @@ impl Piece<'_> {
     }
 
     fn read(&self, start: u64, sink: &mut ElementSink) -> Result<(), VolumeError> {
-        if self.path == Path::new("-") {
-            return Err(VolumeError::Unsupported {
-                path: self.header_path.to_path_buf(),
-                message: "data file \"-\" (standard input) is not supported".into(),
-            });
-        }
-        let file = File::open(self.path).map_err(|e| self.io_error(e))?;
+        let file = File::open(self.path).map_err(|e| match self.header.data_file {
+            DataFile::Attached => self.io_error(e),
+            _ => self.error(format_args!("cannot open data file: {e}")),
+        })?;
         let file_len = file.metadata().map_err(|e| self.io_error(e))?.len();
         let mut r = BufReader::new(file);
         r.seek(SeekFrom::Start(start))

@@ -405,8 +405,7 @@ fn parse_dimension(b: &mut Builder, desc: &str) -> FieldResult {
 fn parse_type(b: &mut Builder, desc: &str) -> FieldResult {
     if desc.eq_ignore_ascii_case("block") {
         return Err(FieldError::Unsupported(
-            "type `block` (opaque elements) is not supported: a volume needs numeric elements"
-                .into(),
+            "`block` (opaque elements) is not supported: a volume needs numeric elements".into(),
         ));
     }
     b.h.scalar_type = ScalarType::parse(desc).ok_or_else(|| {
