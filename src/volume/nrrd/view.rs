@@ -75,8 +75,10 @@ fn fill_axis(axes: &[Option<DVec3>; 3], planar: bool) -> DVec3 {
     }
 }
 
+/// A 2- or 3-component vector as a 3D one (z = 0 for 2D); checked lengths.
 fn vec3(v: &[f64]) -> DVec3 {
-    DVec3::new(v[0], v[1], v.get(2).copied().unwrap_or(0.0))
+    let c = |i: usize, default: f64| v.get(i).copied().unwrap_or(default);
+    DVec3::new(c(0, f64::NAN), c(1, f64::NAN), c(2, 0.0))
 }
 
 /// Geometry from `space directions` (and `space origin`).
@@ -87,6 +89,17 @@ fn geometry_from_directions(
 ) -> Result<Geometry, VolumeError> {
     let dirs = h.space_directions.as_deref().unwrap_or_default();
     let sd = h.space_dimension.unwrap_or(0);
+    let vectors_fit = dirs
+        .iter()
+        .flatten()
+        .chain(&h.space_origin)
+        .all(|v| v.len() == sd);
+    if !vectors_fit {
+        return Err(header_err(
+            path,
+            format!("space directions and origin must have {sd} components (space dimension {sd})"),
+        ));
+    }
     let planar = match sd {
         3 => false,
         2 if kept.iter().filter(|&&i| dirs[i].is_some()).count() <= 2 => true,
@@ -166,11 +179,31 @@ fn display_fields(h: &NrrdHeader) -> Vec<(String, String)> {
     f
 }
 
+/// Per-axis lists must have one entry per axis (always true for parsed headers; this
+/// guards headers built in code).
+fn check_lengths(h: &NrrdHeader, path: &Path) -> Result<(), VolumeError> {
+    let dim = h.dimension();
+    let fits = |n: Option<usize>| n.is_none_or(|n| n == dim);
+    let ok = (1..=16).contains(&dim)
+        && fits(h.space_directions.as_ref().map(Vec::len))
+        && fits(h.kinds.as_ref().map(Vec::len))
+        && fits(h.spacings.as_ref().map(Vec::len));
+    if ok {
+        Ok(())
+    } else {
+        Err(header_err(
+            path,
+            format!(
+                "sizes {:?}: space directions, kinds and spacings need one entry per axis",
+                h.sizes
+            ),
+        ))
+    }
+}
+
 /// See [`NrrdHeader::volume_header`].
 pub(super) fn volume_header(h: &NrrdHeader, path: &Path) -> Result<VolumeHeader, VolumeError> {
-    if h.sizes.is_empty() {
-        return Err(header_err(path, "no axes (sizes is empty)".into()));
-    }
+    check_lengths(h, path)?;
     let kept = kept_axes(h, path)?;
     let mut sizes = [1usize; 3];
     for (slot, &i) in kept.iter().enumerate() {
@@ -267,6 +300,19 @@ mod tests {
             e.to_string().starts_with("v.nrrd: degenerate geometry"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn inconsistent_headers_built_in_code_are_errors() {
+        let h = NrrdHeader::new(ScalarType::Uint8, vec![2, 2, 2]).with_kinds(["RGBA-color"]);
+        assert!(h.volume_header(p()).is_err());
+        let mut h = NrrdHeader::new(ScalarType::Uint8, vec![2, 2, 2]);
+        h.space_dimension = Some(3);
+        h.space_directions = Some(vec![Some(vec![1.0]), Some(vec![0.0, 1.0, 0.0]), None]);
+        assert!(h.volume_header(p()).is_err());
+        assert!(NrrdHeader::new(ScalarType::Uint8, vec![])
+            .volume_header(p())
+            .is_err());
     }
 
     #[test]
