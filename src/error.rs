@@ -10,10 +10,10 @@ use crate::volume::VolumeError;
 #[non_exhaustive]
 pub enum Error {
     /// The scene file is malformed or inconsistent.
-    #[error("{0}")]
+    #[error(transparent)]
     Scene(#[from] SceneError),
     /// The volume cannot be read or described.
-    #[error("{0}")]
+    #[error(transparent)]
     Volume(#[from] VolumeError),
     /// The scene and the volume (or the command line) do not fit together.
     #[error("{scene}: {message}")]
@@ -24,7 +24,7 @@ pub enum Error {
         message: String,
     },
     /// An output file or folder could not be written.
-    #[error("writing {}: {source}", path.display())]
+    #[error("writing {}", path.display())]
     Output {
         /// The file or folder.
         path: PathBuf,

@@ -160,9 +160,9 @@ impl Plan {
                 }
             })
             .collect();
-        let precomputed_bytes = voxels * 12 * gradient_methods.len() as u64
-            + if cubic { voxels * 4 } else { 0 }
-            + table_bytes;
+        let precomputed_bytes = voxels
+            .saturating_mul(12 * gradient_methods.len() as u64 + if cubic { 4 } else { 0 })
+            .saturating_add(table_bytes);
         let threads = opts
             .threads
             .unwrap_or_else(rayon::current_num_threads)
@@ -215,7 +215,9 @@ impl Plan {
 
     /// Total estimated memory.
     pub fn memory_bytes(&self) -> u64 {
-        self.volume_bytes + self.precomputed_bytes + self.film_bytes
+        self.volume_bytes
+            .saturating_add(self.precomputed_bytes)
+            .saturating_add(self.film_bytes)
     }
 
     /// A human-readable description (what `volcast check` prints).

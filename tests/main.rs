@@ -3,6 +3,7 @@
 mod util;
 
 mod analytic;
+mod bad_input;
 mod cli;
 mod determinism;
 mod nrrd;

@@ -2,15 +2,19 @@
 
 use std::process::ExitCode;
 
+use anyhow::Context;
 use volcast::plan::Plan;
 
 use super::args::CheckArgs;
 
 pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
     let (scene, opts, limits) = super::render::prepare(&a.scene)?;
-    let header = scene.volume.source.header()?;
+    let context = || format!("checking {}", scene.path.display());
+    let header = scene.volume.source.header().with_context(context)?;
     let plan = Plan::build(&scene, &header, &opts)?;
-    limits.check(&header.sizes, header.scalar_type.size())?;
+    limits
+        .check(&header.sizes, header.scalar_type.size())
+        .with_context(context)?;
     println!("{}", plan.describe(&scene, &header));
     for w in &scene.warnings {
         println!("warning  {w}");

@@ -86,7 +86,8 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     let progress = Bar(bar);
     let summary = with_threads(opts.threads, || {
         pipeline::render(&scene, &opts, &limits, &progress)
-    })??;
+    })?
+    .with_context(|| format!("rendering {}", scene.path.display()))?;
     if !a.quiet {
         let rate = summary.samples as f64 / summary.seconds.max(1e-9);
         let folder = summary

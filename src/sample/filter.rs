@@ -175,7 +175,7 @@ mod tests {
                 let c = |x: isize, mm: usize| x.clamp(0, mm as isize - 1) as usize;
                 norm.apply(data[c(i, 4) + 4 * (c(j, 3) + 3 * c(k, 3))] as f64)
             };
-            assert_eq!(g[5 + 4 * 4 + 1], grid_gradient(m, n, [2, 1, 1], get));
+            assert_eq!(g[2 + 4 * (1 + 3 * 1)], grid_gradient(m, n, [2, 1, 1], get));
         }
     }
 }

@@ -197,7 +197,7 @@ mod tests {
             path: "s.toml".into(),
             text: t.into(),
             diagnostics: vec![Diagnostic {
-                span: Some(11..12),
+                span: Some(12..13),
                 message: "bad".into(),
             }],
         };

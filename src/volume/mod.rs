@@ -28,8 +28,9 @@ pub use synthetic::Synthetic;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum VolumeError {
-    /// The file system refused (missing file, permissions, ...).
-    #[error("{}: {source}", path.display())]
+    /// The file system refused (missing file, permissions, ...). The OS message is
+    /// the error's `source()`, printed after the path by error-chain printers.
+    #[error("{}", path.display())]
     Io {
         /// The file concerned.
         path: PathBuf,
@@ -130,14 +131,15 @@ pub struct VolumeHeader {
 }
 
 impl VolumeHeader {
-    /// Number of voxels.
+    /// Number of voxels (saturating: a hostile header's product does not overflow;
+    /// [`Limits::check`] rejects it before anything is allocated).
     pub fn voxel_count(&self) -> usize {
-        self.sizes.iter().product()
+        self.sizes.iter().fold(1usize, |a, &n| a.saturating_mul(n))
     }
 
-    /// Bytes the voxels occupy in memory.
+    /// Bytes the voxels occupy in memory (saturating).
     pub fn data_bytes(&self) -> u64 {
-        self.voxel_count() as u64 * self.scalar_type.size() as u64
+        (self.voxel_count() as u64).saturating_mul(self.scalar_type.size() as u64)
     }
 }
 
