@@ -69,7 +69,7 @@ pub fn render(
     let sink = |p: usize, k: usize, window: Option<Window>, films: Vec<(Eye, Film)>| {
         write_frame(scene, &plan, p, k, window, films)
     };
-    let mut summary = with_volume_data!(&volume.data, v => render_typed(scene, &plan, &volume.header, v, norm, progress, Some(&plan.out), &sink))?;
+    let mut summary = with_volume_data!(&volume.data, v => render_typed(scene, &plan, &volume.header, v, norm, &Emit { progress, out_dir: Some(&plan.out), sink: &sink }))?;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
 }
@@ -111,7 +111,7 @@ pub fn render_films(
         }));
         Ok(Vec::new())
     };
-    let mut summary = with_volume_data!(&volume.data, v => render_typed(scene, &plan, &volume.header, v, norm, &NoProgress, None, &sink))?;
+    let mut summary = with_volume_data!(&volume.data, v => render_typed(scene, &plan, &volume.header, v, norm, &Emit { progress: &NoProgress, out_dir: None, sink: &sink }))?;
     summary.seconds = start.elapsed().as_secs_f64();
     let mut views = collected
         .into_inner()
@@ -124,6 +124,14 @@ pub fn render_films(
 type Sink<'a> = dyn Fn(usize, usize, Option<Window>, Vec<(Eye, Film)>) -> Result<Vec<PathBuf>, Error>
     + Sync
     + 'a;
+
+/// Where rendered views go.
+struct Emit<'a> {
+    progress: &'a dyn Progress,
+    /// Folder to create before the first image (none when keeping films in memory).
+    out_dir: Option<&'a std::path::Path>,
+    sink: &'a Sink<'a>,
+}
 
 /// The normalisation of the scene's value window, or of the data's finite range.
 pub fn value_window(scene: &Scene, volume: &Volume) -> Result<Normalize, Error> {
@@ -213,10 +221,13 @@ fn render_typed<T: Voxel>(
     header: &VolumeHeader,
     data: &[T],
     norm: Normalize,
-    progress: &dyn Progress,
-    out_dir: Option<&std::path::Path>,
-    sink: &Sink,
+    emit: &Emit,
 ) -> Result<Summary, Error> {
+    let Emit {
+        progress,
+        out_dir,
+        sink,
+    } = *emit;
     let geometry = header.geometry;
     let index_from_world = geometry
         .index_from_world_matrix()

@@ -18,7 +18,7 @@ pub fn prefilter_cubic<T: Voxel>(data: &[T], n: [usize; 3], norm: Normalize) -> 
         .collect();
     let [nx, ny, nz] = n;
     // x lines are contiguous
-    c.par_chunks_mut(nx).for_each(|line| prefilter_line(line));
+    c.par_chunks_mut(nx).for_each(prefilter_line);
     // y lines: one z slab at a time
     c.par_chunks_mut(nx * ny).for_each(|slab| {
         let mut line = vec![0.0; ny];
@@ -175,7 +175,8 @@ mod tests {
                 let c = |x: isize, mm: usize| x.clamp(0, mm as isize - 1) as usize;
                 norm.apply(data[c(i, 4) + 4 * (c(j, 3) + 3 * c(k, 3))] as f64)
             };
-            assert_eq!(g[2 + 4 * (1 + 3 * 1)], grid_gradient(m, n, [2, 1, 1], get));
+            // voxel (2, 1, 1) of a 4 x 3 x 3 grid is at 2 + 4 * (1 + 3 * 1)
+            assert_eq!(g[18], grid_gradient(m, n, [2, 1, 1], get));
         }
     }
 }

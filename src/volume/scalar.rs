@@ -84,16 +84,27 @@ impl ScalarType {
         Some(match norm.as_str() {
             "signed char" | "int8" | "int8_t" | "i8" => ScalarType::Int8,
             "uchar" | "unsigned char" | "uint8" | "uint8_t" | "u8" => ScalarType::Uint8,
-            "short" | "short int" | "signed short" | "signed short int" | "int16"
-            | "int16_t" | "i16" => ScalarType::Int16,
-            "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t"
-            | "u16" => ScalarType::Uint16,
+            "short" | "short int" | "signed short" | "signed short int" | "int16" | "int16_t"
+            | "i16" => ScalarType::Int16,
+            "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t" | "u16" => {
+                ScalarType::Uint16
+            }
             "int" | "signed int" | "int32" | "int32_t" | "i32" => ScalarType::Int32,
             "uint" | "unsigned int" | "uint32" | "uint32_t" | "u32" => ScalarType::Uint32,
-            "longlong" | "long long" | "long long int" | "signed long long"
-            | "signed long long int" | "int64" | "int64_t" | "i64" => ScalarType::Int64,
-            "ulonglong" | "unsigned long long" | "unsigned long long int" | "uint64"
-            | "uint64_t" | "u64" => ScalarType::Uint64,
+            "longlong"
+            | "long long"
+            | "long long int"
+            | "signed long long"
+            | "signed long long int"
+            | "int64"
+            | "int64_t"
+            | "i64" => ScalarType::Int64,
+            "ulonglong"
+            | "unsigned long long"
+            | "unsigned long long int"
+            | "uint64"
+            | "uint64_t"
+            | "u64" => ScalarType::Uint64,
             "float" | "float32" | "f32" => ScalarType::Float32,
             "double" | "float64" | "f64" => ScalarType::Float64,
             _ => return None,
@@ -274,7 +285,10 @@ impl VolumeData {
     pub fn from_bytes(ty: ScalarType, bytes: &[u8], little_endian: bool) -> VolumeData {
         fn dec<T: Voxel>(bytes: &[u8], le: bool) -> Vec<T> {
             let n = T::TYPE.size();
-            bytes.chunks_exact(n).map(|c| T::from_bytes(c, le)).collect()
+            bytes
+                .chunks_exact(n)
+                .map(|c| T::from_bytes(c, le))
+                .collect()
         }
         match ty {
             ScalarType::Int8 => VolumeData::I8(dec(bytes, little_endian)),
@@ -316,7 +330,10 @@ mod tests {
 
     #[test]
     fn aliases_parse() {
-        assert_eq!(ScalarType::parse("unsigned  short INT"), Some(ScalarType::Uint16));
+        assert_eq!(
+            ScalarType::parse("unsigned  short INT"),
+            Some(ScalarType::Uint16)
+        );
         assert_eq!(ScalarType::parse("uchar"), Some(ScalarType::Uint8));
         assert_eq!(ScalarType::parse("longlong"), Some(ScalarType::Int64));
         assert_eq!(ScalarType::parse("double"), Some(ScalarType::Float64));

@@ -90,7 +90,8 @@ pub fn depth(
 /// denser than air), flipped to face the viewer; `None` where the gradient vanishes.
 pub fn normal_from_gradient(grad: DVec3, ray_dir: DVec3) -> Option<DVec3> {
     let len = grad.length();
-    if !(len > 1e-12) || !len.is_finite() {
+    if !len.is_finite() || len <= 1e-12 {
+        // zero or NaN gradients have no direction (NaN fails `len > 1e-12` too)
         return None;
     }
     let n = -grad / len;
