@@ -113,6 +113,8 @@ pub trait Field: Sync {
 /// Native-typed voxels plus everything needed to reconstruct them.
 pub struct Sampler<'a, T: Voxel> {
     data: &'a [T],
+    /// Normalised value of every possible voxel value, for 8- and 16-bit types.
+    lut: Vec<f32>,
     n: [usize; 3],
     sx: usize,
     sxy: usize,
@@ -154,8 +156,12 @@ impl<'a, T: Voxel> Sampler<'a, T> {
             gradients.is_none_or(|g| g.len() == count),
             "gradient volume matches the sizes"
         );
+        let lut = (0..T::LUT_SIZE)
+            .map(|i| norm.apply(T::lut_value(i)))
+            .collect();
         Sampler {
             data,
+            lut,
             n,
             sx: n[0],
             sxy: n[0] * n[1],
@@ -171,8 +177,18 @@ impl<'a, T: Voxel> Sampler<'a, T> {
     /// Normalised voxel at an in-range index.
     #[inline(always)]
     fn voxel(&self, i: usize, j: usize, k: usize) -> f32 {
-        self.norm
-            .apply(self.data[i + self.sx * j + self.sxy * k].to_f64())
+        self.voxel_at(i + self.sx * j + self.sxy * k)
+    }
+
+    /// Normalised voxel at a flat index (a table load for 8- and 16-bit data).
+    #[inline(always)]
+    fn voxel_at(&self, idx: usize) -> f32 {
+        let v = self.data[idx];
+        if T::LUT_SIZE > 0 {
+            self.lut[v.lut_index()]
+        } else {
+            self.norm.apply(v.to_f64())
+        }
     }
 
     /// Normalised voxel with indices clamped to the grid.
@@ -186,7 +202,7 @@ impl<'a, T: Voxel> Sampler<'a, T> {
     }
 
     fn nearest(&self, p: DVec3) -> f32 {
-        let idx = |x: f64, n: usize| (x.round().max(0.0) as usize).min(n - 1);
+        let idx = |x: f64, n: usize| ((x + 0.5).max(0.0) as usize).min(n - 1);
         self.voxel(
             idx(p.x, self.n[0]),
             idx(p.y, self.n[1]),
@@ -198,11 +214,14 @@ impl<'a, T: Voxel> Sampler<'a, T> {
         let (i0, i1, fx) = cell(p.x, self.n[0]);
         let (j0, j1, fy) = cell(p.y, self.n[1]);
         let (k0, k1, fz) = cell(p.z, self.n[2]);
-        let c = |i, j, k| self.voxel(i, j, k);
-        let x00 = lerp(c(i0, j0, k0), c(i1, j0, k0), fx);
-        let x10 = lerp(c(i0, j1, k0), c(i1, j1, k0), fx);
-        let x01 = lerp(c(i0, j0, k1), c(i1, j0, k1), fx);
-        let x11 = lerp(c(i0, j1, k1), c(i1, j1, k1), fx);
+        // one base index and the offsets to the other seven corners
+        let base = i0 + self.sx * j0 + self.sxy * k0;
+        let (dx, dy, dz) = (i1 - i0, self.sx * (j1 - j0), self.sxy * (k1 - k0));
+        let c = |o: usize| self.voxel_at(base + o);
+        let x00 = lerp(c(0), c(dx), fx);
+        let x10 = lerp(c(dy), c(dy + dx), fx);
+        let x01 = lerp(c(dz), c(dz + dx), fx);
+        let x11 = lerp(c(dz + dy), c(dz + dy + dx), fx);
         lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz)
     }
 
@@ -298,8 +317,10 @@ fn cell(x: f64, n: usize) -> (usize, usize, f32) {
         return (0, 0, 0.0);
     }
     let max = (n - 1) as f64;
-    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, max) };
-    let i0 = (x.floor() as usize).min(n - 2);
+    // NaN fails `x > 0` and maps to 0; for x >= 0, truncation is floor (and an
+    // inlined conversion, where `floor` is a library call on baseline x86-64)
+    let x = if x > 0.0 { x.min(max) } else { 0.0 };
+    let i0 = (x as usize).min(n - 2);
     (i0, i0 + 1, (x - i0 as f64) as f32)
 }
 
@@ -318,8 +339,8 @@ fn mirror(i: isize, n: usize) -> usize {
 #[inline(always)]
 fn bspline_weights(x: f64, n: usize) -> ([usize; 4], [f64; 4]) {
     let max = (n.max(1) - 1) as f64;
-    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, max) };
-    let i = x.floor();
+    let x = if x > 0.0 { x.min(max) } else { 0.0 };
+    let i = x as usize as f64;
     let t = x - i;
     let i = i as isize;
     let t2 = t * t;

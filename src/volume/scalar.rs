@@ -134,9 +134,55 @@ pub trait Voxel: Copy + Send + Sync + 'static {
     fn from_bytes(bytes: &[u8], little_endian: bool) -> Self;
     /// Converts from `f64` by rounding and saturating (integers) or rounding (floats).
     fn from_f64(v: f64) -> Self;
+    /// Entries of a lookup table indexed by [`Voxel::lut_index`]: 256 or 65536 for
+    /// 8- and 16-bit types (so a normalisation can be one table load), 0 otherwise.
+    const LUT_SIZE: usize = 0;
+    /// The value's position in a table of `LUT_SIZE` entries, in increasing order
+    /// of value (only called when `LUT_SIZE > 0`).
+    #[inline(always)]
+    fn lut_index(self) -> usize {
+        0
+    }
+    /// The value at table position `i` (inverse of `lut_index`).
+    fn lut_value(_i: usize) -> f64 {
+        0.0
+    }
 }
 
 macro_rules! impl_voxel {
+    ($t:ty, $st:expr, int, lut $wide:ty) => {
+        impl Voxel for $t {
+            const TYPE: ScalarType = $st;
+            const LUT_SIZE: usize = 1 << (8 * std::mem::size_of::<$t>());
+            #[inline(always)]
+            fn to_f64(self) -> f64 {
+                self as f64
+            }
+            #[inline]
+            fn from_bytes(bytes: &[u8], little_endian: bool) -> Self {
+                let arr: [u8; std::mem::size_of::<$t>()] = bytes[..std::mem::size_of::<$t>()]
+                    .try_into()
+                    .expect("caller passes at least size_of::<T>() bytes");
+                if little_endian {
+                    <$t>::from_le_bytes(arr)
+                } else {
+                    <$t>::from_be_bytes(arr)
+                }
+            }
+            #[inline]
+            fn from_f64(v: f64) -> Self {
+                // `as` saturates and maps NaN to 0.
+                v.round() as $t
+            }
+            #[inline(always)]
+            fn lut_index(self) -> usize {
+                (self as $wide - <$t>::MIN as $wide) as usize
+            }
+            fn lut_value(i: usize) -> f64 {
+                (i as $wide + <$t>::MIN as $wide) as f64
+            }
+        }
+    };
     ($t:ty, $st:expr, int) => {
         impl Voxel for $t {
             const TYPE: ScalarType = $st;
@@ -188,10 +234,10 @@ macro_rules! impl_voxel {
     };
 }
 
-impl_voxel!(i8, ScalarType::Int8, int);
-impl_voxel!(u8, ScalarType::Uint8, int);
-impl_voxel!(i16, ScalarType::Int16, int);
-impl_voxel!(u16, ScalarType::Uint16, int);
+impl_voxel!(i8, ScalarType::Int8, int, lut i16);
+impl_voxel!(u8, ScalarType::Uint8, int, lut i16);
+impl_voxel!(i16, ScalarType::Int16, int, lut i32);
+impl_voxel!(u16, ScalarType::Uint16, int, lut i32);
 impl_voxel!(i32, ScalarType::Int32, int);
 impl_voxel!(u32, ScalarType::Uint32, int);
 impl_voxel!(i64, ScalarType::Int64, int);
@@ -341,6 +387,22 @@ mod tests {
         for t in ScalarType::ALL {
             assert_eq!(ScalarType::parse(t.nrrd_name()), Some(t));
         }
+    }
+
+    #[test]
+    fn lookup_tables_cover_the_type_in_order() {
+        fn check<T: Voxel + PartialOrd>(lo: T, hi: T) {
+            assert_eq!(lo.lut_index(), 0);
+            assert_eq!(hi.lut_index(), T::LUT_SIZE - 1);
+            assert_eq!(T::lut_value(0), lo.to_f64());
+            assert_eq!(T::lut_value(T::LUT_SIZE - 1), hi.to_f64());
+        }
+        check(i8::MIN, i8::MAX);
+        check(u8::MIN, u8::MAX);
+        check(i16::MIN, i16::MAX);
+        check(u16::MIN, u16::MAX);
+        assert_eq!(<f32 as Voxel>::LUT_SIZE, 0);
+        assert_eq!((-3i16).lut_index(), 32765);
     }
 
     #[test]
