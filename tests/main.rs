@@ -6,4 +6,5 @@ mod analytic;
 mod bad_input;
 mod cli;
 mod determinism;
+mod geometry;
 mod nrrd;

@@ -57,12 +57,17 @@ fn unreachable_size() -> image::ImageError {
 /// NRRD bytes of a raw film: float32, sizes `W H` (scalar) or `C W H` (components
 /// fastest), row 0 at the top, with the given `key:=value` pairs.
 pub fn nrrd(film: &Film, key_values: &[(String, String)]) -> Result<Vec<u8>, VolumeError> {
-    let sizes = if film.channels == 1 {
-        vec![film.width, film.height]
+    let header = if film.channels == 1 {
+        NrrdHeader::new(ScalarType::Float32, vec![film.width, film.height])
+            .with_kinds(["space", "space"])
     } else {
-        vec![film.channels, film.width, film.height]
+        NrrdHeader::new(
+            ScalarType::Float32,
+            vec![film.channels, film.width, film.height],
+        )
+        .with_kinds(["RGBA-color", "space", "space"])
     };
-    let mut header = NrrdHeader::new(ScalarType::Float32, sizes);
+    let mut header = header;
     header.key_values.extend(key_values.iter().cloned());
     nrrd::encode(&header, &VolumeData::F32(film.data.clone()))
 }

@@ -1137,6 +1137,13 @@ impl Resolver<'_> {
                     ));
                     return None;
                 };
+                if let Transfer::OneD(tf) = &transfer {
+                    if tf.max_alpha() == 0.0 {
+                        self.warnings.push(format!(
+                            "pass `{name}`: transfer function `{transfer_name}` has zero alpha everywhere: the image will be empty"
+                        ));
+                    }
+                }
                 Mode::Composite {
                     transfer_name,
                     transfer,
