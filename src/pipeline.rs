@@ -235,8 +235,8 @@ fn render_typed<T: Voxel>(
             scene: scene.path.clone(),
             message: format!("the volume {} has degenerate axes", header.source),
         })?;
-    let frame = IndexFrame::new(header.sizes, &geometry, index_from_world);
-    let sphere = geometry.bounding_sphere(header.sizes);
+    let frame = IndexFrame::new(header.sizes, scene.volume.crop, &geometry, index_from_world);
+    let sphere = frame.bounding_sphere(&geometry);
     let pre = Precomputed::build(scene, plan, data, header.sizes, norm);
     let light = shade_light(scene, sphere.0);
     let runtimes: Vec<PassRuntime<T>> = scene

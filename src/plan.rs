@@ -97,6 +97,18 @@ impl Plan {
                 header.source
             )));
         }
+        if let Some(crop) = scene.volume.crop {
+            for (a, (&[lo, hi], &n)) in crop.iter().zip(&header.sizes).enumerate() {
+                if hi >= n {
+                    return Err(fail(format!(
+                        "volume.crop: the {} range [{lo}, {hi}] is outside the volume's {n} voxels (0..={})",
+                        ["x", "y", "z"][a],
+                        n - 1
+                    )));
+                }
+                debug_assert!(lo <= hi, "checked by the scene resolver");
+            }
+        }
         let total = scene.orbit.frames;
         let frames = match &opts.frames {
             None => 0..total,
@@ -246,6 +258,13 @@ impl Plan {
                     "window   the data's min..max (read when the volume is loaded)"
                 );
             }
+        }
+        if let Some(c) = scene.volume.crop {
+            let _ = writeln!(
+                s,
+                "crop     x {}..={}, y {}..={}, z {}..={} (rays are clipped to this box)",
+                c[0][0], c[0][1], c[1][0], c[1][1], c[2][0], c[2][1]
+            );
         }
         let views = self.frames.len() * self.eyes.len();
         let stereo = match &scene.stereo {

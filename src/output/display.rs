@@ -28,8 +28,9 @@ pub struct Window {
 }
 
 impl Window {
-    /// The range of the finite values of `films` (channel 0). A constant image gets
-    /// a window one unit wide ending at its value; no finite value gives `[0, 1]`.
+    /// The range of the finite values of `films` (channel 0). A constant image `v`
+    /// gets the window from 0 to `v` (so zero shows black and anything else white);
+    /// no finite value gives `[0, 1]`.
     pub fn of_films<'a>(films: impl IntoIterator<Item = &'a Film>) -> Window {
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for f in films {
@@ -50,8 +51,12 @@ impl Window {
             Window { lo: 0.0, hi: 1.0 }
         } else if lo < hi {
             Window { lo, hi }
+        } else if lo > 0.0 {
+            Window { lo: 0.0, hi: lo }
+        } else if lo < 0.0 {
+            Window { lo, hi: 0.0 }
         } else {
-            Window { lo: hi - 1.0, hi }
+            Window { lo: 0.0, hi: 1.0 }
         }
     }
 
@@ -135,7 +140,9 @@ mod tests {
 
     #[test]
     fn degenerate_windows() {
-        assert_eq!(Window::from_range(2.0, 2.0), Window { lo: 1.0, hi: 2.0 });
+        assert_eq!(Window::from_range(2.0, 2.0), Window { lo: 0.0, hi: 2.0 });
+        assert_eq!(Window::from_range(-2.0, -2.0), Window { lo: -2.0, hi: 0.0 });
+        assert_eq!(Window::from_range(0.0, 0.0), Window { lo: 0.0, hi: 1.0 });
         assert_eq!(
             Window::from_range(f64::INFINITY, f64::NEG_INFINITY),
             Window { lo: 0.0, hi: 1.0 }

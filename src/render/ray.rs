@@ -36,17 +36,59 @@ impl IndexRay {
 
 impl IndexFrame {
     /// The frame of a grid of `sizes` with `geometry`. The box spans the voxel
-    /// centres, `[0, n-1]` per axis; an axis of a single voxel gets a slab one voxel
-    /// thick, `[-0.5, 0.5]`, so that thin volumes are visible from every side.
-    pub fn new(sizes: [usize; 3], geometry: &Geometry, index_from_world: DMat3) -> IndexFrame {
-        let lo = DVec3::from_array(sizes.map(|n| if n == 1 { -0.5 } else { 0.0 }));
-        let hi = DVec3::from_array(sizes.map(|n| if n == 1 { 0.5 } else { (n - 1) as f64 }));
+    /// centres, `[0, n-1]` per axis, or the voxel index ranges of `crop` (inclusive,
+    /// already checked to lie inside the grid); an axis one voxel wide gets a slab one
+    /// voxel thick, `[i - 0.5, i + 0.5]`, so that thin volumes are visible from every side.
+    pub fn new(
+        sizes: [usize; 3],
+        crop: Option<[[usize; 2]; 3]>,
+        geometry: &Geometry,
+        index_from_world: DMat3,
+    ) -> IndexFrame {
+        let range = |a: usize| crop.map_or([0, sizes[a].max(1) - 1], |c| c[a]);
+        let lo = DVec3::from_array(std::array::from_fn(|a| {
+            let [l, h] = range(a);
+            if l == h {
+                l as f64 - 0.5
+            } else {
+                l as f64
+            }
+        }));
+        let hi = DVec3::from_array(std::array::from_fn(|a| {
+            let [l, h] = range(a);
+            if l == h {
+                h as f64 + 0.5
+            } else {
+                h as f64
+            }
+        }));
         IndexFrame {
             lo,
             hi,
             origin: geometry.origin,
             index_from_world,
         }
+    }
+
+    /// Centre and radius (world units) of the sphere through the corners of the box:
+    /// what cameras frame, and where depth is measured from.
+    pub fn bounding_sphere(&self, geometry: &Geometry) -> (DVec3, f64) {
+        let corners: Vec<DVec3> = (0..8)
+            .map(|n| {
+                let p = DVec3::new(
+                    if n & 1 != 0 { self.hi.x } else { self.lo.x },
+                    if n & 2 != 0 { self.hi.y } else { self.lo.y },
+                    if n & 4 != 0 { self.hi.z } else { self.lo.z },
+                );
+                geometry.world_from_index(p)
+            })
+            .collect();
+        let centre = corners.iter().fold(DVec3::ZERO, |a, &c| a + c) / 8.0;
+        let radius = corners
+            .iter()
+            .map(|&c| (c - centre).length())
+            .fold(0.0, f64::max);
+        (centre, radius)
     }
 
     /// The index-space form of a world ray.
@@ -89,7 +131,7 @@ mod tests {
     use super::*;
 
     fn frame(n: [usize; 3]) -> IndexFrame {
-        IndexFrame::new(n, &Geometry::default(), DMat3::IDENTITY)
+        IndexFrame::new(n, None, &Geometry::default(), DMat3::IDENTITY)
     }
 
     #[test]
@@ -113,6 +155,23 @@ mod tests {
         let f = frame([5, 5, 5]);
         let r = f.to_index(DVec3::splat(2.0), DVec3::Z);
         assert_eq!(f.clip(&r, 0.0), Some((0.0, 2.0)));
+    }
+
+    #[test]
+    fn crop_box_and_its_sphere() {
+        let f = IndexFrame::new(
+            [10, 10, 10],
+            Some([[2, 4], [0, 9], [5, 5]]),
+            &Geometry::default(),
+            DMat3::IDENTITY,
+        );
+        assert_eq!(
+            (f.lo, f.hi),
+            (DVec3::new(2.0, 0.0, 4.5), DVec3::new(4.0, 9.0, 5.5))
+        );
+        let (c, r) = f.bounding_sphere(&Geometry::default());
+        assert_eq!(c, DVec3::new(3.0, 4.5, 5.0));
+        assert!((r - (1.0f64 + 4.5 * 4.5 + 0.25).sqrt()).abs() < 1e-12);
     }
 
     #[test]

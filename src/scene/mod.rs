@@ -53,6 +53,9 @@ pub struct VolumeSpec {
     pub source: VolumeSource,
     /// Data values mapped linearly to [0, 1]; `None` = the data's finite min..max.
     pub window: Option<[f64; 2]>,
+    /// Voxel index ranges (inclusive) of the sub-volume to render; `None` = all.
+    /// Checked against the volume's sizes when the plan is built.
+    pub crop: Option<[[usize; 2]; 3]>,
 }
 
 /// Perspective or parallel projection.

@@ -258,7 +258,22 @@ impl Resolver<'_> {
             VolumeSource::Synthetic(_) => Some([0.0, 1.0]),
             _ => None,
         });
-        VolumeSpec { source, window }
+        let crop = v.crop.as_ref().and_then(|c| {
+            let r = *c.get_ref();
+            if r.iter().all(|&[a, b]| 0 <= a && a <= b && b <= (1 << 31)) {
+                Some(r.map(|[a, b]| [a as usize, b as usize]))
+            } else {
+                self.err(c.span(), format!(
+                    "crop = {r:?}: expected [[x0, x1], [y0, y1], [z0, z1]], voxel index ranges with 0 <= low <= high"
+                ));
+                None
+            }
+        });
+        VolumeSpec {
+            source,
+            window,
+            crop,
+        }
     }
 
     fn synthetic(&mut self, v: &VolumeTable, s: &Spanned<String>) -> Option<VolumeSource> {

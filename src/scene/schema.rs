@@ -36,6 +36,7 @@ pub struct VolumeTable {
     pub path: Sp<String>,
     pub format: Sp<String>,
     pub window: Sp<[f64; 2]>,
+    pub crop: Sp<[[i64; 2]; 3]>,
     // raw
     pub sizes: Sp<Vec<i64>>,
     #[serde(rename = "type")]

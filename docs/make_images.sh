@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Renders the pictures of the README from the example scenes, with the project's own
+# binary. Run from the project root: docs/make_images.sh [path/to/volcast]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+VOLCAST=${1:-target/release/volcast}
+[ -x "$VOLCAST" ] || cargo build --release
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+render() { "$VOLCAST" render --quiet --frames 0 --size 256x256 --out "$tmp/$1" "scenes/$1.toml"; }
+for s in xray_engine mip_head head_modes minip_ventricles depth_engine golden_engine golden_head composite_engine_bone transfer_2d marschner_lobb; do
+  render "$s"
+done
+cp "$tmp/xray_engine/xray_0000.png"                docs/images/xray.png
+cp "$tmp/xray_engine/integral_0000.png"            docs/images/xray_integral.png
+cp "$tmp/mip_head/mip_0000.png"                    docs/images/mip.png
+cp "$tmp/head_modes/lmip_0000.png"                 docs/images/lmip.png
+cp "$tmp/minip_ventricles/minip_0000.png"          docs/images/minip.png
+cp "$tmp/head_modes/average_0000.png"              docs/images/average.png
+cp "$tmp/depth_engine/depth_0000.png"              docs/images/depth.png
+cp "$tmp/golden_engine/gold_0000.png"              docs/images/surface.png
+cp "$tmp/golden_head/surface_0000.png"             docs/images/surface_head.png
+cp "$tmp/composite_engine_bone/bone_0000.png"      docs/images/composite.png
+cp "$tmp/transfer_2d/composite_0000.png"           docs/images/composite_2d.png
+cp "$tmp/marschner_lobb/trilinear_0000.png"        docs/images/ml_trilinear.png
+cp "$tmp/marschner_lobb/cubic_0000.png"            docs/images/ml_cubic.png
+echo "pictures written to docs/images/"
