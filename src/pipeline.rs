@@ -387,35 +387,62 @@ fn kernel<'a>(
     light: Light,
     voxel_length: f64,
 ) -> Kernel<'a> {
+    use crate::render::integrator::{Exact, Integrand};
+    use crate::scene::Integration;
     let shader = |s: &crate::scene::Shading| Shader {
         model: s.model,
         material: s.material,
         light,
     };
-    match &pass.mode {
-        Mode::Xray { output, mu } => Kernel::Xray {
+    let exact = match (&pass.mode, pass.integration) {
+        (_, Integration::Sampled) => None,
+        (Mode::Xray { output, mu }, _) => Some(Exact::Xray {
+            output: *output,
+            mu: *mu,
+        }),
+        (Mode::Mip, _) => Some(Exact::Mip),
+        (Mode::Minip, _) => Some(Exact::Minip),
+        (Mode::Average, _) => Some(Exact::Average),
+        (Mode::Depth { threshold }, _) => Some(Exact::Depth {
+            threshold: *threshold as f32,
+        }),
+        (Mode::Surface { iso, shading }, _) => Some(Exact::Surface {
+            iso: *iso as f32,
+            shader: shader(shading),
+        }),
+        // the scene rejects exact integration for the other modes
+        _ => None,
+    };
+    let integrand = match (&pass.mode, exact) {
+        (_, Some(e)) => Integrand::Exact(e),
+        (Mode::Xray { output, mu }, None) => Integrand::Xray {
             output: *output,
             mu: *mu,
         },
-        Mode::Mip => Kernel::Mip,
-        Mode::Minip => Kernel::Minip,
-        Mode::Average => Kernel::Average,
-        Mode::Lmip { threshold } => Kernel::Lmip {
+        (Mode::Mip, None) => Integrand::Mip,
+        (Mode::Minip, None) => Integrand::Minip,
+        (Mode::Average, None) => Integrand::Average,
+        (Mode::Lmip { threshold }, None) => Integrand::Lmip {
             threshold: *threshold as f32,
         },
-        Mode::Depth { threshold } => Kernel::Depth {
+        (Mode::Depth { threshold }, None) => Integrand::Depth {
             threshold: *threshold as f32,
         },
-        Mode::Surface { iso, shading } => Kernel::Surface {
+        (Mode::Surface { iso, shading }, None) => Integrand::Surface {
             iso: *iso as f32,
             shader: shader(shading),
         },
-        Mode::Composite {
-            shading,
-            reference_step_voxels,
-            early_stop,
-            ..
-        } => Kernel::Composite {
+        (
+            Mode::Composite {
+                shading,
+                reference_step_voxels,
+                early_stop,
+                transfer,
+                preintegrated,
+                ..
+            },
+            None,
+        ) => Integrand::Composite {
             table: match table.expect("the plan builds a table for every composite pass") {
                 OwnedTable::OneD(t) => TransferTable::OneD(t),
                 OwnedTable::TwoD(t) => TransferTable::TwoD(t),
@@ -424,7 +451,25 @@ fn kernel<'a>(
             reference_step: reference_step_voxels * voxel_length,
             early_stop: *early_stop as f32,
             voxel_length,
+            // built once per pass, for the pass's step (the plan counts its memory)
+            preintegrated: match (preintegrated, transfer) {
+                (true, Transfer::OneD(tf)) => Some(std::sync::Arc::new(
+                    crate::transfer::Preintegrated::build(tf, pass.step_voxels / reference_step_voxels),
+                )),
+                _ => None,
+            },
         },
+    };
+    Kernel {
+        integrand,
+        // the pass's seed: a hash of its name, so each pass jitters differently
+        jitter: pass.jitter.then(|| {
+            pass.name
+                .bytes()
+                .fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+                    (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+                })
+        }),
     }
 }
 

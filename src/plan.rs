@@ -16,7 +16,9 @@ use std::ops::Range;
 use crate::error::Error;
 use crate::output::Eye;
 use crate::sample::{GradientMethod, Interpolation};
+use crate::scene::Integration;
 use crate::scene::{Format, Layout, Mode, Scene, Transfer};
+use crate::transfer::{Preintegrated, COLOR_ENTRIES, INTEGRAL_ENTRIES};
 use crate::volume::{human_bytes, VolumeHeader};
 
 /// Entries of a 1D transfer-function table.
@@ -48,6 +50,8 @@ pub struct PassPlan {
     pub cubic: bool,
     /// Transfer-function table entries, if any.
     pub table_entries: Option<usize>,
+    /// Bytes of the pre-integration table (pre-integrated composite passes only).
+    pub preintegrated_bytes: Option<u64>,
     /// Whether the grey window comes from a preview pass.
     pub auto_window: bool,
 }
@@ -145,11 +149,14 @@ impl Plan {
                         transfer, shading, ..
                     } => {
                         let two_d = matches!(transfer, Transfer::TwoD(_));
-                        let g = (shading.is_some() || two_d).then(|| {
-                            shading
-                                .as_ref()
-                                .map_or(GradientMethod::Central, |s| s.gradient)
-                        });
+                        // analytic gradients come from the spline on the fly
+                        let g = (shading.is_some() || two_d)
+                            .then(|| {
+                                shading
+                                    .as_ref()
+                                    .map_or(GradientMethod::Central, |s| s.gradient)
+                            })
+                            .filter(|g| *g != GradientMethod::Analytic);
                         (g, Some(if two_d { TABLE_2D * TABLE_2D } else { TABLE_1D }))
                     }
                     _ => (None, None),
@@ -160,12 +167,22 @@ impl Plan {
                     }
                 }
                 table_bytes += table_entries.map_or(0, |n| n as u64 * 16);
+                let preintegrated_bytes = matches!(
+                    p.mode,
+                    Mode::Composite {
+                        preintegrated: true,
+                        ..
+                    }
+                )
+                .then(Preintegrated::planned_bytes);
+                table_bytes += preintegrated_bytes.unwrap_or(0);
                 cubic |= p.interpolation == Interpolation::Cubic;
                 PassPlan {
                     dt: p.step_voxels * voxel_length,
                     gradient_volume,
                     cubic: p.interpolation == Interpolation::Cubic,
                     table_entries,
+                    preintegrated_bytes,
                     auto_window: p.mode.is_intensity()
                         && p.window.is_none()
                         && scene.image.format != Format::Nrrd,
@@ -301,11 +318,24 @@ impl Plan {
                 p.interpolation.name()
             );
             let mut needs = Vec::new();
+            if p.integration == Integration::Exact {
+                needs.push(
+                    "exact integration of the trilinear interpolant, cell by cell (no step)".into(),
+                );
+            }
+            if p.jitter {
+                needs.push("jittered first sample per pixel".into());
+            }
             if let Some(g) = pp.gradient_volume {
                 needs.push(format!("{} gradient volume", g.name()));
             }
             if let Some(sh) = p.mode.shading() {
-                if pp.gradient_volume.is_none() {
+                if sh.gradient == GradientMethod::Analytic {
+                    needs.push(format!(
+                        "analytic gradients of the {} spline, on the fly",
+                        p.interpolation.name()
+                    ));
+                } else if pp.gradient_volume.is_none() {
                     needs.push(format!(
                         "{} gradients at the hit points",
                         sh.gradient.name()
@@ -320,6 +350,15 @@ impl Plan {
             }
             if let (Some(n), Mode::Composite { transfer_name, .. }) = (pp.table_entries, &p.mode) {
                 needs.push(format!("transfer table `{transfer_name}` ({n} entries)"));
+            }
+            if let Some(b) = pp.preintegrated_bytes {
+                needs.push(format!(
+                    "pre-integration table ({} integral entries, {}x{} segment colours for this step, {})",
+                    INTEGRAL_ENTRIES + 1,
+                    COLOR_ENTRIES,
+                    COLOR_ENTRIES,
+                    human_bytes(b)
+                ));
             }
             if pp.auto_window {
                 needs.push(format!(

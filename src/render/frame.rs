@@ -6,7 +6,7 @@
 
 use rayon::prelude::*;
 
-use super::integrator::{trace, Kernel, PixelRay};
+use super::integrator::{jitter_fraction, trace, Kernel, PixelRay};
 use super::{IndexFrame, View};
 use crate::sample::Field;
 use crate::scene::Projection;
@@ -99,5 +99,9 @@ pub fn render_pixel<F: Field>(
         t_exit,
         t_depth_ref: view.depth_reference(&ray).unwrap_or(t_enter),
     };
-    Some(trace(kernel, field, &pixel_ray, dt))
+    let jitter = kernel.jitter.map_or(0.0, |seed| {
+        let (e, f) = (view.eye, view.forward);
+        jitter_fraction(seed, [e.x, e.y, e.z, f.x, f.y, f.z], i, j)
+    });
+    Some(trace(kernel, field, &pixel_ray, dt, jitter))
 }

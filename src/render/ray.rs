@@ -73,22 +73,7 @@ impl IndexFrame {
     /// Centre and radius (world units) of the sphere through the corners of the box:
     /// what cameras frame, and where depth is measured from.
     pub fn bounding_sphere(&self, geometry: &Geometry) -> (DVec3, f64) {
-        let corners: Vec<DVec3> = (0..8)
-            .map(|n| {
-                let p = DVec3::new(
-                    if n & 1 != 0 { self.hi.x } else { self.lo.x },
-                    if n & 2 != 0 { self.hi.y } else { self.lo.y },
-                    if n & 4 != 0 { self.hi.z } else { self.lo.z },
-                );
-                geometry.world_from_index(p)
-            })
-            .collect();
-        let centre = corners.iter().fold(DVec3::ZERO, |a, &c| a + c) / 8.0;
-        let radius = corners
-            .iter()
-            .map(|&c| (c - centre).length())
-            .fold(0.0, f64::max);
-        (centre, radius)
+        geometry.box_bounding_sphere(self.lo, self.hi)
     }
 
     /// The index-space form of a world ray.

@@ -122,7 +122,11 @@ pub(super) fn grid_gradient(
             get(q[0], q[1], q[2])
         };
         *ga = match method {
-            GradientMethod::Central => (at([0; 3], hi) - at([0; 3], lo)) / h,
+            // analytic gradients come from the spline (`Sampler::gradient`); a grid
+            // estimate for them is the central difference
+            GradientMethod::Central | GradientMethod::Analytic => {
+                (at([0; 3], hi) - at([0; 3], lo)) / h
+            }
             GradientMethod::Sobel => {
                 let (u, v) = match axis {
                     0 => (1, 2),

@@ -110,6 +110,8 @@ pub struct RenderTable {
     pub transfer: Sp<String>,
     pub reference_step: Sp<f64>,
     pub early_stop: Sp<f64>,
+    pub integration: Sp<String>,
+    pub jitter: Sp<bool>,
 }
 
 impl RenderTable {
@@ -124,6 +126,7 @@ impl RenderTable {
         k(&mut out, "output", &self.output);
         k(&mut out, "mu", &self.mu);
         k(&mut out, "threshold", &self.threshold);
+    pub preintegrated: Sp<bool>,
         k(&mut out, "iso", &self.iso);
         k(&mut out, "material", &self.material);
         k(&mut out, "shading", &self.shading);
@@ -146,6 +149,9 @@ pub type AlphaKnot = (f64, f64);
 pub struct TransferTable {
     pub kind: Sp<String>,
     pub interpolation: Sp<String>,
+        k(&mut out, "integration", &self.integration);
+        k(&mut out, "jitter", &self.jitter);
+        k(&mut out, "preintegrated", &self.preintegrated);
     pub color: Sp<Vec<ColorKnot>>,
     pub alpha: Sp<Vec<AlphaKnot>>,
     pub widget: Option<Vec<Spanned<WidgetTable>>>,

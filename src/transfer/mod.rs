@@ -9,11 +9,13 @@
 
 mod curve;
 mod one_d;
+mod preintegrated;
 mod two_d;
 
 use std::fmt;
 
 pub use one_d::{Table1D, Transfer1D};
+pub use preintegrated::{Preintegrated, COLOR_ENTRIES, INTEGRAL_ENTRIES, MAX_EXTINCTION};
 pub use two_d::{Table2D, Transfer2D, Widget, WidgetShape};
 
 /// How a 1D transfer function interpolates between its knots.

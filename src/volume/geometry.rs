@@ -74,29 +74,29 @@ impl Geometry {
             && self.index_from_world_matrix().is_some()
     }
 
-    /// The eight world-space corners of the sampled box for a grid of `sizes`.
+    /// The eight world-space corners of the box spanned by the voxel centres of a
+    /// grid of `sizes`.
     pub fn corners(&self, sizes: [usize; 3]) -> [DVec3; 8] {
-        let hi = DVec3::new(
-            (sizes[0].max(1) - 1) as f64,
-            (sizes[1].max(1) - 1) as f64,
-            (sizes[2].max(1) - 1) as f64,
-        );
-        let mut out = [DVec3::ZERO; 8];
-        for (n, c) in out.iter_mut().enumerate() {
-            let p = DVec3::new(
-                if n & 1 != 0 { hi.x } else { 0.0 },
-                if n & 2 != 0 { hi.y } else { 0.0 },
-                if n & 4 != 0 { hi.z } else { 0.0 },
-            );
-            *c = self.world_from_index(p);
-        }
-        out
+        let hi = DVec3::from_array(sizes.map(|n| (n.max(1) - 1) as f64));
+        self.box_corners(DVec3::ZERO, hi)
     }
 
-    /// Centre and radius of the sphere around the sampled box (its circumsphere:
-    /// centred on the box centre, through the corners).
-    pub fn bounding_sphere(&self, sizes: [usize; 3]) -> (DVec3, f64) {
-        let corners = self.corners(sizes);
+    /// The eight world-space corners of the index-space box `[lo, hi]`.
+    pub fn box_corners(&self, lo: DVec3, hi: DVec3) -> [DVec3; 8] {
+        std::array::from_fn(|n| {
+            let p = DVec3::new(
+                if n & 1 != 0 { hi.x } else { lo.x },
+                if n & 2 != 0 { hi.y } else { lo.y },
+                if n & 4 != 0 { hi.z } else { lo.z },
+            );
+            self.world_from_index(p)
+        })
+    }
+
+    /// Centre and radius of the sphere around the index-space box `[lo, hi]` (its
+    /// circumsphere: centred on the box centre, through the corners).
+    pub fn box_bounding_sphere(&self, lo: DVec3, hi: DVec3) -> (DVec3, f64) {
+        let corners = self.box_corners(lo, hi);
         let centre = corners.iter().fold(DVec3::ZERO, |a, &c| a + c) / 8.0;
         let radius = corners
             .iter()
@@ -140,7 +140,7 @@ mod tests {
     #[test]
     fn bounding_sphere_of_unit_grid() {
         let g = Geometry::from_spacing([1.0, 1.0, 1.0]);
-        let (c, r) = g.bounding_sphere([3, 3, 3]);
+        let (c, r) = g.box_bounding_sphere(DVec3::ZERO, DVec3::splat(2.0));
         assert_eq!(c, DVec3::splat(1.0));
         assert!((r - 3f64.sqrt()).abs() < 1e-12);
     }

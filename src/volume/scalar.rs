@@ -149,11 +149,15 @@ pub trait Voxel: Copy + Send + Sync + 'static {
     }
 }
 
+/// Implements [`Voxel`] for a primitive: `$round` converts an `f64` (rounding for
+/// integers, where `as` also saturates and maps NaN to 0); `$($lut)*` adds the
+/// lookup-table methods for 8- and 16-bit types, indexing through the wider `$wide`.
 macro_rules! impl_voxel {
-    ($t:ty, $st:expr, int, lut $wide:ty) => {
+    ($t:ty, $st:expr, $round:expr $(, lut $wide:ty)?) => {
         impl Voxel for $t {
             const TYPE: ScalarType = $st;
-            const LUT_SIZE: usize = 1 << (8 * std::mem::size_of::<$t>());
+            // `$wide` is twice as wide as `$t`: 2^(bits of $t) entries
+            $(const LUT_SIZE: usize = 1 << (4 * std::mem::size_of::<$wide>());)?
             #[inline(always)]
             fn to_f64(self) -> f64 {
                 self as f64
@@ -171,79 +175,32 @@ macro_rules! impl_voxel {
             }
             #[inline]
             fn from_f64(v: f64) -> Self {
-                // `as` saturates and maps NaN to 0.
-                v.round() as $t
+                let round: fn(f64) -> f64 = $round;
+                round(v) as $t
             }
-            #[inline(always)]
-            fn lut_index(self) -> usize {
-                (self as $wide - <$t>::MIN as $wide) as usize
-            }
-            fn lut_value(i: usize) -> f64 {
-                (i as $wide + <$t>::MIN as $wide) as f64
-            }
-        }
-    };
-    ($t:ty, $st:expr, int) => {
-        impl Voxel for $t {
-            const TYPE: ScalarType = $st;
-            #[inline(always)]
-            fn to_f64(self) -> f64 {
-                self as f64
-            }
-            #[inline]
-            fn from_bytes(bytes: &[u8], little_endian: bool) -> Self {
-                let arr: [u8; std::mem::size_of::<$t>()] = bytes[..std::mem::size_of::<$t>()]
-                    .try_into()
-                    .expect("caller passes at least size_of::<T>() bytes");
-                if little_endian {
-                    <$t>::from_le_bytes(arr)
-                } else {
-                    <$t>::from_be_bytes(arr)
+            $(
+                #[inline(always)]
+                fn lut_index(self) -> usize {
+                    (self as $wide - <$t>::MIN as $wide) as usize
                 }
-            }
-            #[inline]
-            fn from_f64(v: f64) -> Self {
-                // `as` saturates and maps NaN to 0.
-                v.round() as $t
-            }
-        }
-    };
-    ($t:ty, $st:expr, float) => {
-        impl Voxel for $t {
-            const TYPE: ScalarType = $st;
-            #[inline(always)]
-            fn to_f64(self) -> f64 {
-                self as f64
-            }
-            #[inline]
-            fn from_bytes(bytes: &[u8], little_endian: bool) -> Self {
-                let arr: [u8; std::mem::size_of::<$t>()] = bytes[..std::mem::size_of::<$t>()]
-                    .try_into()
-                    .expect("caller passes at least size_of::<T>() bytes");
-                if little_endian {
-                    <$t>::from_le_bytes(arr)
-                } else {
-                    <$t>::from_be_bytes(arr)
+                fn lut_value(i: usize) -> f64 {
+                    (i as $wide + <$t>::MIN as $wide) as f64
                 }
-            }
-            #[inline]
-            fn from_f64(v: f64) -> Self {
-                v as $t
-            }
+            )?
         }
     };
 }
 
-impl_voxel!(i8, ScalarType::Int8, int, lut i16);
-impl_voxel!(u8, ScalarType::Uint8, int, lut i16);
-impl_voxel!(i16, ScalarType::Int16, int, lut i32);
-impl_voxel!(u16, ScalarType::Uint16, int, lut i32);
-impl_voxel!(i32, ScalarType::Int32, int);
-impl_voxel!(u32, ScalarType::Uint32, int);
-impl_voxel!(i64, ScalarType::Int64, int);
-impl_voxel!(u64, ScalarType::Uint64, int);
-impl_voxel!(f32, ScalarType::Float32, float);
-impl_voxel!(f64, ScalarType::Float64, float);
+impl_voxel!(i8, ScalarType::Int8, f64::round, lut i16);
+impl_voxel!(u8, ScalarType::Uint8, f64::round, lut i16);
+impl_voxel!(i16, ScalarType::Int16, f64::round, lut i32);
+impl_voxel!(u16, ScalarType::Uint16, f64::round, lut i32);
+impl_voxel!(i32, ScalarType::Int32, f64::round);
+impl_voxel!(u32, ScalarType::Uint32, f64::round);
+impl_voxel!(i64, ScalarType::Int64, f64::round);
+impl_voxel!(u64, ScalarType::Uint64, f64::round);
+impl_voxel!(f32, ScalarType::Float32, |v| v);
+impl_voxel!(f64, ScalarType::Float64, |v| v);
 
 /// Voxel values in their native type, x fastest.
 #[derive(Clone, Debug, PartialEq)]

@@ -3,6 +3,11 @@
 //! positions is represented by the field at its midpoint; its opacity is corrected
 //! from the transfer function's reference step to the segment's own length, so the
 //! image converges as the step shrinks.
+//!
+//! Pre-integrated passes (`preintegrated = true`) instead sample the field at the
+//! march positions and take each segment's colour and opacity from the table of
+//! segment integrals over (front value, back value) ([`Preintegrated`]; Engel et al.
+//! 2001), so a thin peak of the transfer function between two samples still counts.
 
 use glam::Vec3;
 
@@ -10,7 +15,7 @@ use super::crossing::normal_from_gradient;
 use super::{March, PixelRay, TransferTable};
 use crate::sample::Field;
 use crate::shade::Shader;
-use crate::transfer::correct_opacity;
+use crate::transfer::{correct_opacity, Preintegrated};
 
 pub struct Params<'a> {
     pub table: TransferTable<'a>,
@@ -18,9 +23,13 @@ pub struct Params<'a> {
     pub reference_step: f64,
     pub early_stop: f32,
     pub voxel_length: f64,
+    pub preintegrated: Option<&'a Preintegrated>,
 }
 
 pub fn trace<F: Field>(march: &March, field: &F, ray: &PixelRay, p: Params) -> ([f32; 4], u64) {
+    if let Some(pre) = p.preintegrated {
+        return trace_preintegrated(march, field, ray, &p, pre);
+    }
     let n = march.len();
     let mut color = Vec3::ZERO;
     let mut alpha = 0.0f32;
@@ -57,6 +66,64 @@ pub fn trace<F: Field>(march: &March, field: &F, ray: &PixelRay, p: Params) -> (
                 let normal = normal_from_gradient(g, ray.dir);
                 shader.shade(
                     ray.world(t).as_vec3(),
+                    normal.map(|n| n.as_vec3()),
+                    to_eye,
+                    base,
+                )
+            }
+        };
+        let w = (1.0 - alpha) * a;
+        color += c * w;
+        alpha += w;
+        if alpha >= p.early_stop {
+            break;
+        }
+    }
+    if alpha > 0.0 {
+        let c = color / alpha;
+        ([c.x, c.y, c.z, alpha], samples)
+    } else {
+        ([0.0; 4], samples)
+    }
+}
+
+/// Front-to-back compositing of pre-integrated segments between consecutive samples.
+fn trace_preintegrated<F: Field>(
+    march: &March,
+    field: &F,
+    ray: &PixelRay,
+    p: &Params,
+    pre: &Preintegrated,
+) -> ([f32; 4], u64) {
+    let n = march.len();
+    let mut color = Vec3::ZERO;
+    let mut alpha = 0.0f32;
+    let to_eye = (-ray.dir).as_vec3();
+    let mut t_prev = march.t(0);
+    let mut v_prev = field.value(ray.index.at(t_prev));
+    let mut samples = 1;
+    for i in 1..n {
+        let t = march.t(i);
+        let length = t - t_prev;
+        if length <= 0.0 {
+            continue;
+        }
+        let v = field.value(ray.index.at(t));
+        samples += 1;
+        let (rgb, a) = pre.segment(v_prev, v, length / p.reference_step);
+        let t_mid = 0.5 * (t_prev + t);
+        t_prev = t;
+        v_prev = v;
+        if a <= 0.0 {
+            continue;
+        }
+        let base = Vec3::from_array(rgb);
+        let c = match p.shader {
+            None => base,
+            Some(shader) => {
+                let normal = normal_from_gradient(field.gradient(ray.index.at(t_mid)), ray.dir);
+                shader.shade(
+                    ray.world(t_mid).as_vec3(),
                     normal.map(|n| n.as_vec3()),
                     to_eye,
                     base,

@@ -109,6 +109,12 @@ pub fn surface<F: Field>(
     let value = |t: f64| field.value(ray.index.at(t));
     let (hit, n) = first_crossing(march, &value, iso);
     let Some(t) = hit else { return ([0.0; 4], n) };
+    (shade_hit(field, shader, ray, t), n)
+}
+
+/// The shaded colour of an iso-surface hit at `t` (white, alpha 1), with the
+/// normal from the field's gradient there.
+pub fn shade_hit<F: Field>(field: &F, shader: &Shader, ray: &PixelRay, t: f64) -> [f32; 4] {
     let normal = normal_from_gradient(field.gradient(ray.index.at(t)), ray.dir);
     let c = shader.shade(
         ray.world(t).as_vec3(),
@@ -116,7 +122,7 @@ pub fn surface<F: Field>(
         (-ray.dir).as_vec3(),
         Vec3::ONE,
     );
-    ([c.x, c.y, c.z, 1.0], n)
+    [c.x, c.y, c.z, 1.0]
 }
 
 #[cfg(test)]
