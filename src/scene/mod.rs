@@ -253,6 +253,8 @@ pub enum Mode {
         reference_step_voxels: f64,
         /// Stop when the accumulated opacity reaches this (1 = never stop early).
         early_stop: f64,
+        /// Pre-integrated segments (1D transfer functions only).
+        preintegrated: bool,
     },
 }
 
@@ -299,6 +301,29 @@ pub struct RenderPass {
     pub interpolation: Interpolation,
     /// Grey window of intensity modes in PNG output; `None` = automatic.
     pub window: Option<[f64; 2]>,
+    /// Sampled (ray marching) or exact (cell by cell on the trilinear interpolant).
+    pub integration: Integration,
+    /// Jitter each ray's first sample by a per-pixel fraction of the step.
+    pub jitter: bool,
+}
+
+/// How a pass integrates along its rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Integration {
+    /// Samples every `step` (the default).
+    Sampled,
+    /// Walks the cells and integrates the trilinear interpolant in closed form.
+    Exact,
+}
+
+impl Integration {
+    /// The scene-file name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Integration::Sampled => "sampled",
+            Integration::Exact => "exact",
+        }
+    }
 }
 
 /// The `[light]` table.
@@ -325,8 +350,6 @@ pub enum LightKindSpec {
 }
 
 /// Reads and validates a scene file.
-        /// Pre-integrated segments (1D transfer functions only).
-        preintegrated: bool,
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| SceneError::whole_file(path, format!("cannot read the scene file: {e}")))?;
@@ -338,26 +361,3 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
     resolve::resolve(text, path)
 }
-    /// Sampled (ray marching) or exact (cell by cell on the trilinear interpolant).
-    pub integration: Integration,
-    /// Jitter each ray's first sample by a per-pixel fraction of the step.
-    pub jitter: bool,
-}
-
-/// How a pass integrates along its rays.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Integration {
-    /// Samples every `step` (the default).
-    Sampled,
-    /// Walks the cells and integrates the trilinear interpolant in closed form.
-    Exact,
-}
-
-impl Integration {
-    /// The scene-file name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Integration::Sampled => "sampled",
-            Integration::Exact => "exact",
-        }
-    }

@@ -996,6 +996,8 @@ impl Resolver<'_> {
                 step_voxels: 0.5,
                 interpolation: Interpolation::Trilinear,
                 window: None,
+                integration: Integration::Sampled,
+                jitter: false,
             }];
         };
         if tables.is_empty() {
@@ -1077,6 +1079,16 @@ impl Resolver<'_> {
                 mode_name.to_string()
             }
         };
+        let integration = self.choice(
+            "integration",
+            &v.integration,
+            &[
+                ("sampled", Integration::Sampled),
+                ("exact", Integration::Exact),
+            ],
+            Integration::Sampled,
+        );
+        let jitter = v.jitter.as_ref().is_some_and(|j| *j.get_ref());
         let step_voxels = self.number(
             "step",
             &v.step,
@@ -1096,6 +1108,7 @@ impl Resolver<'_> {
             Interpolation::Trilinear,
         );
         let window = self.window("window", &v.window);
+        self.check_method(v, integration, interpolation, jitter);
         let unit = |x: f64| (0.0..=1.0).contains(&x);
         const UNIT: &str =
             "a normalised value in [0, 1] (0 = the volume window's low end, 1 = its high end)";
@@ -1147,8 +1160,6 @@ impl Resolver<'_> {
                     .transfer
                     .as_ref()
                     .map_or("grey".to_string(), |t| t.get_ref().clone());
-                integration: Integration::Sampled,
-                jitter: false,
                 let Some(transfer) = transfers.get(&transfer_name).cloned() else {
                     let span = v.transfer.as_ref().map_or(t.span(), |s| s.span());
                     let hint = suggest(&transfer_name, transfers.keys().map(|s| s.as_str()))
@@ -1160,6 +1171,14 @@ impl Resolver<'_> {
                     ));
                     return None;
                 };
+                let preintegrated = v.preintegrated.as_ref().is_some_and(|p| *p.get_ref());
+                if let (true, Transfer::TwoD(_), Some(p)) =
+                    (preintegrated, &transfer, &v.preintegrated)
+                {
+                    self.err(p.span(), format!(
+                        "preintegrated = true needs a 1D transfer function, but `{transfer_name}` is 2D (value x gradient magnitude); pre-integration tabulates segments over (front value, back value)"
+                    ));
+                }
                 if let Transfer::OneD(tf) = &transfer {
                     if tf.max_alpha() == 0.0 {
                         self.warnings.push(format!(
@@ -1185,16 +1204,57 @@ impl Resolver<'_> {
                         |x| x > 0.0 && x <= 1.0,
                         "an opacity in (0, 1]",
                     ),
+                    preintegrated,
                 }
             }
         };
+        if let (Some(sh), Some(g)) = (mode.shading(), &v.gradient) {
+            if sh.gradient == GradientMethod::Analytic
+                && !matches!(interpolation, Interpolation::Cubic | Interpolation::BSpline)
+            {
+                self.err(g.span(), format!(
+                    "gradient = \"analytic\" is the derivative of the cubic spline: it needs interpolation = \"cubic\" or \"bspline\" (this pass has \"{}\"); with {} use gradient = \"central\" or \"sobel\"",
+                    interpolation.name(),
+                    interpolation.name()
+                ));
+            }
+        }
         Some(RenderPass {
             name,
             mode,
             step_voxels,
             interpolation,
             window,
+            integration,
+            jitter,
         })
+    }
+
+    /// Combinations of integration, interpolation and jitter that do not work.
+    fn check_method(
+        &mut self,
+        v: &RenderTable,
+        integration: Integration,
+        interpolation: Interpolation,
+        jitter: bool,
+    ) {
+        if integration != Integration::Exact {
+            return;
+        }
+        let Some(span) = v.integration.as_ref().map(|s| s.span()) else {
+            return;
+        };
+        if interpolation != Interpolation::Trilinear {
+            let at = v.interpolation.as_ref().map_or(span.clone(), |s| s.span());
+            self.err(at, format!(
+                "integration = \"exact\" integrates the trilinear interpolant in closed form: it needs interpolation = \"trilinear\" (this pass has \"{}\"); for {} use integration = \"sampled\"",
+                interpolation.name(),
+                interpolation.name()
+            ));
+        }
+        if let (true, Some(j)) = (jitter, &v.jitter) {
+            self.err(j.span(), "jitter = true moves the samples of integration = \"sampled\"; integration = \"exact\" takes no samples (it walks the cells): remove one of them");
+        }
     }
 
     fn shading(
@@ -1226,20 +1286,11 @@ impl Resolver<'_> {
             &[
                 ("central", GradientMethod::Central),
                 ("sobel", GradientMethod::Sobel),
+                ("analytic", GradientMethod::Analytic),
             ],
             GradientMethod::Central,
         );
         let (material, material_name) = match &v.material {
-        let integration = self.choice(
-            "integration",
-            &v.integration,
-            &[
-                ("sampled", Integration::Sampled),
-                ("exact", Integration::Exact),
-            ],
-            Integration::Sampled,
-        );
-        let jitter = v.jitter.as_ref().is_some_and(|j| *j.get_ref());
             None => (Material::neutral(), NEUTRAL.to_string()),
             Some(m) => {
                 let n = m.get_ref().as_str();
@@ -1259,7 +1310,6 @@ impl Resolver<'_> {
                     let hint = suggest(n, all.iter().copied())
                         .map(|s| format!("; did you mean `{s}`?"))
                         .unwrap_or_default();
-        self.check_method(v, integration, interpolation, jitter);
                     self.err(m.span(), format!("material = \"{n}\" is not defined: use a preset ({}) or add a [material.{n}] table{hint}", quoted_list(all.iter().copied())));
                     return None;
                 }
@@ -1320,53 +1370,3 @@ fn builtin_transfers() -> BTreeMap<String, Transfer> {
     m.insert("bone".to_string(), Transfer::OneD(Arc::new(bone)));
     m
 }
-                let preintegrated = v.preintegrated.as_ref().is_some_and(|p| *p.get_ref());
-                if let (true, Transfer::TwoD(_), Some(p)) =
-                    (preintegrated, &transfer, &v.preintegrated)
-                {
-                    self.err(p.span(), format!(
-                        "preintegrated = true needs a 1D transfer function, but `{transfer_name}` is 2D (value x gradient magnitude); pre-integration tabulates segments over (front value, back value)"
-                    ));
-                }
-                    preintegrated,
-        if let (Some(sh), Some(g)) = (mode.shading(), &v.gradient) {
-            if sh.gradient == GradientMethod::Analytic
-                && !matches!(interpolation, Interpolation::Cubic | Interpolation::BSpline)
-            {
-                self.err(g.span(), format!(
-                    "gradient = \"analytic\" is the derivative of the cubic spline: it needs interpolation = \"cubic\" or \"bspline\" (this pass has \"{}\"); with {} use gradient = \"central\" or \"sobel\"",
-                    interpolation.name(),
-                    interpolation.name()
-                ));
-            }
-        }
-            integration,
-            jitter,
-    /// Combinations of integration, interpolation and jitter that do not work.
-    fn check_method(
-        &mut self,
-        v: &RenderTable,
-        integration: Integration,
-        interpolation: Interpolation,
-        jitter: bool,
-    ) {
-        if integration != Integration::Exact {
-            return;
-        }
-        let Some(span) = v.integration.as_ref().map(|s| s.span()) else {
-            return;
-        };
-        if interpolation != Interpolation::Trilinear {
-            let at = v.interpolation.as_ref().map_or(span.clone(), |s| s.span());
-            self.err(at, format!(
-                "integration = \"exact\" integrates the trilinear interpolant in closed form: it needs interpolation = \"trilinear\" (this pass has \"{}\"); for {} use integration = \"sampled\"",
-                interpolation.name(),
-                interpolation.name()
-            ));
-        }
-        if let (true, Some(j)) = (jitter, &v.jitter) {
-            self.err(j.span(), "jitter = true moves the samples of integration = \"sampled\"; integration = \"exact\" takes no samples (it walks the cells): remove one of them");
-        }
-    }
-
-                ("analytic", GradientMethod::Analytic),

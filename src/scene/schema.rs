@@ -96,6 +96,8 @@ pub struct RenderTable {
     pub step: Sp<f64>,
     pub interpolation: Sp<String>,
     pub window: Sp<[f64; 2]>,
+    pub integration: Sp<String>,
+    pub jitter: Sp<bool>,
     // xray
     pub output: Sp<String>,
     pub mu: Sp<f64>,
@@ -110,8 +112,7 @@ pub struct RenderTable {
     pub transfer: Sp<String>,
     pub reference_step: Sp<f64>,
     pub early_stop: Sp<f64>,
-    pub integration: Sp<String>,
-    pub jitter: Sp<bool>,
+    pub preintegrated: Sp<bool>,
 }
 
 impl RenderTable {
@@ -126,7 +127,6 @@ impl RenderTable {
         k(&mut out, "output", &self.output);
         k(&mut out, "mu", &self.mu);
         k(&mut out, "threshold", &self.threshold);
-    pub preintegrated: Sp<bool>,
         k(&mut out, "iso", &self.iso);
         k(&mut out, "material", &self.material);
         k(&mut out, "shading", &self.shading);
@@ -135,6 +135,9 @@ impl RenderTable {
         k(&mut out, "reference_step", &self.reference_step);
         k(&mut out, "early_stop", &self.early_stop);
         k(&mut out, "window", &self.window);
+        k(&mut out, "integration", &self.integration);
+        k(&mut out, "jitter", &self.jitter);
+        k(&mut out, "preintegrated", &self.preintegrated);
         out
     }
 }
@@ -149,9 +152,6 @@ pub type AlphaKnot = (f64, f64);
 pub struct TransferTable {
     pub kind: Sp<String>,
     pub interpolation: Sp<String>,
-        k(&mut out, "integration", &self.integration);
-        k(&mut out, "jitter", &self.jitter);
-        k(&mut out, "preintegrated", &self.preintegrated);
     pub color: Sp<Vec<ColorKnot>>,
     pub alpha: Sp<Vec<AlphaKnot>>,
     pub widget: Option<Vec<Spanned<WidgetTable>>>,
