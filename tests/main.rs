@@ -2,6 +2,7 @@
 
 mod util;
 
+mod accuracy;
 mod analytic;
 mod bad_input;
 mod cli;
