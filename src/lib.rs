@@ -12,6 +12,7 @@
 //! (both in the project's shared folder); the README documents the whole format.
 #![warn(missing_docs)]
 
+pub mod bench;
 pub mod error;
 pub mod output;
 pub mod plan;

@@ -453,9 +453,12 @@ fn kernel<'a>(
             voxel_length,
             // built once per pass, for the pass's step (the plan counts its memory)
             preintegrated: match (preintegrated, transfer) {
-                (true, Transfer::OneD(tf)) => Some(std::sync::Arc::new(
-                    crate::transfer::Preintegrated::build(tf, pass.step_voxels / reference_step_voxels),
-                )),
+                (true, Transfer::OneD(tf)) => {
+                    Some(std::sync::Arc::new(crate::transfer::Preintegrated::build(
+                        tf,
+                        pass.step_voxels / reference_step_voxels,
+                    )))
+                }
                 _ => None,
             },
         },
@@ -464,11 +467,9 @@ fn kernel<'a>(
         integrand,
         // the pass's seed: a hash of its name, so each pass jitters differently
         jitter: pass.jitter.then(|| {
-            pass.name
-                .bytes()
-                .fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
-                    (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
-                })
+            pass.name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+                (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+            })
         }),
     }
 }

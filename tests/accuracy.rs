@@ -590,3 +590,57 @@ fn exact_field_values_come_from_the_cell_corners() {
     // corner (a, b, c) at a + 2b + 4c; the single-voxel z axis repeats voxel 0
     assert_eq!(c, [0.1, 0.2, 0.4, 0.5, 0.1, 0.2, 0.4, 0.5]);
 }
+
+#[test]
+fn bench_accuracy_quick_writes_its_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = crate::util::volcast(
+        dir.path(),
+        &["bench", "accuracy", "--quick", "--out", "out"],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("| gaussian | xray |"), "{stdout}");
+    let out = dir.path().join("out");
+    let csv = std::fs::read_to_string(out.join("accuracy.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert!(rows.len() > 50, "{} rows", rows.len());
+    // columns: field,mode,method,interpolation,gradient,transfer,step,ms,msamples,max,rms,pixels
+    let rms = |field: &str, method: &str, transfer: &str, step: &str| -> f64 {
+        rows.iter()
+            .find(|r| {
+                r[0] == field
+                    && r[1] == "composite"
+                    && r[2] == method
+                    && r[5] == transfer
+                    && r[6] == step
+            })
+            .unwrap_or_else(|| panic!("{field} {method} {transfer} {step}"))[10]
+            .parse()
+            .unwrap()
+    };
+    // the narrow peak: pre-integration at step 1 beats sampling at step 0.25
+    for field in ["gaussian", "sphere"] {
+        let pre = rms(field, "preintegrated", "narrow", "1");
+        let sampled = rms(field, "sampled", "narrow", "0.25");
+        assert!(
+            pre < sampled,
+            "{field}: pre-integrated {pre} vs sampled {sampled}"
+        );
+    }
+    for r in &rows {
+        let (ms, err): (f64, f64) = (r[7].parse().unwrap(), r[10].parse().unwrap());
+        assert!(ms > 0.0 && err.is_finite(), "{r:?}");
+    }
+    let png = image::open(out.join("images/accuracy.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (1600, 900));
+    let md = std::fs::read_to_string(out.join("accuracy.md")).unwrap();
+    assert!(md.contains("volcast bench accuracy --quick --out out") && md.contains("nproc"));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("accuracy.json")).unwrap()).unwrap();
+    assert_eq!(json["rows"].as_array().unwrap().len(), rows.len());
+}

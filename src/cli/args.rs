@@ -21,6 +21,32 @@ pub enum Command {
     Check(CheckArgs),
     /// Describe a volume (a .nrrd/.nhdr file, or the volume of a scene .toml).
     Info(InfoArgs),
+    /// Measure the renderer: `bench accuracy` reports speed against error.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+/// The benchmarks.
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Every render mode on analytic fields over steps, interpolations, gradient
+    /// estimators and methods: time per view, samples per second, max and RMS error
+    /// against the closed forms. Prints the summary and writes accuracy.csv,
+    /// accuracy.json, accuracy.md and images/accuracy.png into --out.
+    Accuracy(AccuracyArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct AccuracyArgs {
+    /// A CI-sized run (two fields, two steps, tiny images): seconds, not minutes.
+    #[arg(long)]
+    pub quick: bool,
+    /// Folder for the results.
+    #[arg(long, value_name = "DIR", default_value = "bench-accuracy")]
+    pub out: PathBuf,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
 }
 
 /// Options shared by `render` and `check`.

@@ -2,6 +2,7 @@
 //! everything the user sees on the terminal is printed here.
 
 mod args;
+mod bench;
 mod check;
 mod info;
 mod render;
@@ -19,5 +20,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Render(a) => render::run(a),
         Command::Check(a) => check::run(a),
         Command::Info(a) => info::run(a),
+        Command::Bench(args::BenchCommand::Accuracy(a)) => bench::accuracy(a),
     }
 }

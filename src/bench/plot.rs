@@ -1,0 +1,169 @@
+//! The speed-against-error plot of the accuracy bench: one panel per render mode,
+//! time per view (log) against RMS error (log), one line per method and
+//! reconstruction joining its steps. Drawn with plotters into a memory buffer (no
+//! system font libraries: the label font is embedded, `assets/fonts/README.md`) and
+//! encoded as PNG by the `image` crate.
+
+use std::collections::BTreeMap;
+use std::io::Cursor;
+use std::sync::Once;
+
+use plotters::prelude::*;
+
+use super::{BenchError, Report, Row};
+
+/// DejaVu Sans (Bitstream Vera licence, `assets/fonts/DejaVuSans.LICENSE`).
+static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+const WIDTH: u32 = 1600;
+const HEIGHT: u32 = 900;
+/// Errors below this are drawn at it (a log axis has no zero).
+const ERROR_FLOOR: f64 = 1e-9;
+
+fn plot_err(e: impl std::fmt::Display) -> BenchError {
+    BenchError::Plot(e.to_string())
+}
+
+/// The field each panel shows: the Marschner-Lobb signal for every mode (the
+/// standard hard case), and the sphere with the narrow transfer function for
+/// compositing (where pre-integration matters); the first field of a quick run
+/// otherwise.
+fn panel_rows<'a>(r: &'a Report, mode: &str) -> (String, Vec<&'a Row>) {
+    let has = |f: &str| r.rows.iter().any(|x| x.field == f && x.mode == mode);
+    let (field, tf) = if mode == "composite" {
+        (if has("sphere") { "sphere" } else { "" }, Some("narrow"))
+    } else {
+        (
+            if has("marschner-lobb") {
+                "marschner-lobb"
+            } else {
+                ""
+            },
+            None,
+        )
+    };
+    let field = if field.is_empty() {
+        r.rows
+            .iter()
+            .find(|x| x.mode == mode)
+            .map_or(String::new(), |x| x.field.clone())
+    } else {
+        field.to_string()
+    };
+    let rows = r
+        .rows
+        .iter()
+        .filter(|x| {
+            x.mode == mode && x.field == field && (tf.is_none() || x.transfer.as_deref() == tf)
+        })
+        .collect();
+    let title = match tf {
+        Some(t) => format!("{mode}, {field}, transfer {t}"),
+        None => format!("{mode}, {field}"),
+    };
+    (title, rows)
+}
+
+/// Draws the plot and returns the PNG bytes.
+pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
+    static REGISTER: Once = Once::new();
+    let mut registered = Ok(());
+    REGISTER.call_once(|| {
+        registered = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
+            .map_err(|_| BenchError::Plot("the embedded font is not a valid TrueType file".into()));
+    });
+    registered?;
+    let mut buf = vec![255u8; (WIDTH * HEIGHT * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
+        root.fill(&WHITE).map_err(plot_err)?;
+        let root = root
+            .titled(
+                "volcast: RMS error against time per view (lines join steps 2 .. 0.125 voxels)",
+                ("sans-serif", 22),
+            )
+            .map_err(plot_err)?;
+        let modes = [
+            "xray",
+            "mip",
+            "minip",
+            "average",
+            "lmip",
+            "depth",
+            "surface",
+            "composite",
+        ];
+        for (area, mode) in root.split_evenly((2, 4)).iter().zip(modes) {
+            let (title, rows) = panel_rows(report, mode);
+            if rows.is_empty() {
+                continue;
+            }
+            // one series per (method, interpolation, gradient), ordered by step
+            let mut series: BTreeMap<String, Vec<(f64, f64, f64)>> = BTreeMap::new();
+            for r in &rows {
+                let label = match &r.gradient {
+                    Some(g) => format!("{} {} {}", r.method, r.interpolation, g),
+                    None => format!("{} {}", r.method, r.interpolation),
+                };
+                series.entry(label).or_default().push((
+                    r.step_voxels.unwrap_or(0.0),
+                    r.ms_per_frame.max(1e-6),
+                    r.rms_error.max(ERROR_FLOOR),
+                ));
+            }
+            let xs = rows.iter().map(|r| r.ms_per_frame.max(1e-6));
+            let ys = rows.iter().map(|r| r.rms_error.max(ERROR_FLOOR));
+            let (x0, x1) = xs.fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
+            let (y0, y1) = ys.fold((f64::MAX, f64::MIN), |(a, b), y| (a.min(y), b.max(y)));
+            let mut chart = ChartBuilder::on(area)
+                .caption(title, ("sans-serif", 16))
+                .margin(8)
+                .x_label_area_size(34)
+                .y_label_area_size(58)
+                .build_cartesian_2d(
+                    (x0 / 1.3..x1 * 1.3).log_scale(),
+                    (y0 / 2.0..y1 * 2.0).log_scale(),
+                )
+                .map_err(plot_err)?;
+            chart
+                .configure_mesh()
+                .x_desc("ms per view")
+                .y_desc("RMS error")
+                .label_style(("sans-serif", 11))
+                .y_label_formatter(&|y| format!("{y:.0e}"))
+                .x_label_formatter(&|x| format!("{x:.2}"))
+                .draw()
+                .map_err(plot_err)?;
+            for (k, (label, mut pts)) in series.into_iter().enumerate() {
+                pts.sort_by(|a, b| b.0.total_cmp(&a.0));
+                let color = Palette99::pick(k).to_rgba();
+                let line: Vec<(f64, f64)> = pts.iter().map(|p| (p.1, p.2)).collect();
+                chart
+                    .draw_series(LineSeries::new(line.clone(), color.stroke_width(2)))
+                    .map_err(plot_err)?
+                    .label(label)
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2))
+                    });
+                chart
+                    .draw_series(line.into_iter().map(|p| Circle::new(p, 3, color.filled())))
+                    .map_err(plot_err)?;
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK.mix(0.3))
+                .label_font(("sans-serif", 10))
+                .position(SeriesLabelPosition::UpperRight)
+                .draw()
+                .map_err(plot_err)?;
+        }
+        root.present().map_err(plot_err)?;
+    }
+    let img = image::RgbImage::from_raw(WIDTH, HEIGHT, buf)
+        .ok_or_else(|| BenchError::Plot("the plot buffer has the wrong size".into()))?;
+    let mut png = Vec::new();
+    img.write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
+        .map_err(plot_err)?;
+    Ok(png)
+}

@@ -1,0 +1,37 @@
+//! `volcast bench accuracy`: runs the accuracy bench, prints its summary, writes
+//! its files.
+
+use std::process::ExitCode;
+
+use volcast::bench;
+
+use super::args::AccuracyArgs;
+use super::render::with_threads;
+
+/// Runs the accuracy bench.
+pub fn accuracy(a: AccuracyArgs) -> anyhow::Result<ExitCode> {
+    let opts = bench::Options::new(a.quick);
+    let mut command = String::from("volcast bench accuracy");
+    if a.quick {
+        command += " --quick";
+    }
+    command += &format!(" --out {}", a.out.display());
+    if let Some(t) = a.threads {
+        command += &format!(" --threads {t}");
+    }
+    let report = with_threads(a.threads.map(usize::from), || {
+        let mut last = usize::MAX;
+        bench::accuracy(&opts, &command, &mut |done, total| {
+            let pct = 100 * done / total.max(1);
+            if pct / 10 != last / 10 || done == total {
+                eprintln!("bench: {done}/{total} cases");
+                last = pct;
+            }
+        })
+    })??;
+    println!("{}", report.summary());
+    for f in report.write(&a.out)? {
+        eprintln!("wrote {}", f.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
