@@ -8,4 +8,5 @@ mod bad_input;
 mod cli;
 mod determinism;
 mod geometry;
+mod hard_cases;
 mod nrrd;

@@ -2,14 +2,16 @@
 //! "Emission-absorption and compositing"). Each segment between two sample
 //! positions is represented by the field at its midpoint; its opacity is corrected
 //! from the transfer function's reference step to the segment's own length, so the
-//! image converges as the step shrinks.
+//! image converges as the step shrinks. Colour and opacity accumulate in f64: with
+//! tiny opacities and tiny steps (1e-7 per voxel at 1e-3 voxel) each sample adds
+//! hundreds of f32 ulps' worth, and f32 rounding would drift as the step shrinks.
 //!
 //! Pre-integrated passes (`preintegrated = true`) instead sample the field at the
 //! march positions and take each segment's colour and opacity from the table of
 //! segment integrals over (front value, back value) ([`Preintegrated`]; Engel et al.
 //! 2001), so a thin peak of the transfer function between two samples still counts.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use super::crossing::normal_from_gradient;
 use super::{March, PixelRay, TransferTable};
@@ -31,8 +33,8 @@ pub fn trace<F: Field>(march: &March, field: &F, ray: &PixelRay, p: Params) -> (
         return trace_preintegrated(march, field, ray, &p, pre);
     }
     let n = march.len();
-    let mut color = Vec3::ZERO;
-    let mut alpha = 0.0f32;
+    let mut color = DVec3::ZERO;
+    let mut alpha = 0.0f64;
     let mut samples = 0;
     let to_eye = (-ray.dir).as_vec3();
     for i in 1..n {
@@ -72,16 +74,16 @@ pub fn trace<F: Field>(march: &March, field: &F, ray: &PixelRay, p: Params) -> (
                 )
             }
         };
-        let w = (1.0 - alpha) * a;
-        color += c * w;
+        let w = (1.0 - alpha) * f64::from(a);
+        color += c.as_dvec3() * w;
         alpha += w;
-        if alpha >= p.early_stop {
+        if alpha >= f64::from(p.early_stop) {
             break;
         }
     }
     if alpha > 0.0 {
-        let c = color / alpha;
-        ([c.x, c.y, c.z, alpha], samples)
+        let c = (color / alpha).as_vec3();
+        ([c.x, c.y, c.z, alpha as f32], samples)
     } else {
         ([0.0; 4], samples)
     }
@@ -96,8 +98,8 @@ fn trace_preintegrated<F: Field>(
     pre: &Preintegrated,
 ) -> ([f32; 4], u64) {
     let n = march.len();
-    let mut color = Vec3::ZERO;
-    let mut alpha = 0.0f32;
+    let mut color = DVec3::ZERO;
+    let mut alpha = 0.0f64;
     let to_eye = (-ray.dir).as_vec3();
     let mut t_prev = march.t(0);
     let mut v_prev = field.value(ray.index.at(t_prev));
@@ -130,16 +132,16 @@ fn trace_preintegrated<F: Field>(
                 )
             }
         };
-        let w = (1.0 - alpha) * a;
-        color += c * w;
+        let w = (1.0 - alpha) * f64::from(a);
+        color += c.as_dvec3() * w;
         alpha += w;
-        if alpha >= p.early_stop {
+        if alpha >= f64::from(p.early_stop) {
             break;
         }
     }
     if alpha > 0.0 {
-        let c = color / alpha;
-        ([c.x, c.y, c.z, alpha], samples)
+        let c = (color / alpha).as_vec3();
+        ([c.x, c.y, c.z, alpha as f32], samples)
     } else {
         ([0.0; 4], samples)
     }
