@@ -31,6 +31,14 @@ pub enum Error {
         /// What the OS said.
         source: std::io::Error,
     },
+    /// A manifest record in an output folder is not what volcast writes.
+    #[error("{}: {message}", path.display())]
+    Manifest {
+        /// The record or manifest file.
+        path: PathBuf,
+        /// What is wrong and what was expected.
+        message: String,
+    },
     /// An image could not be encoded.
     #[error("encoding {}: {message}", path.display())]
     Encode {

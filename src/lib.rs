@@ -12,6 +12,7 @@
 //! (both in the project's shared folder); the README documents the whole format.
 #![warn(missing_docs)]
 
+pub mod batch;
 pub mod bench;
 pub mod error;
 pub mod output;
@@ -21,6 +22,7 @@ pub mod sample;
 pub mod scene;
 pub mod shade;
 pub mod transfer;
+pub mod views;
 pub mod volume;
 
 pub use error::Error;

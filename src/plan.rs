@@ -37,6 +37,14 @@ pub struct RunOptions {
     pub size: Option<(usize, usize)>,
     /// Worker threads (`None` = one per core); reported in the plan.
     pub threads: Option<usize>,
+    /// Render only this interleaved part of the frames (of `frames`, or of all).
+    pub shard: Option<crate::batch::Shard>,
+    /// Skip (pass, frame) images already written for the same scene (see
+    /// `output::manifest`).
+    pub resume: bool,
+    /// Render every (frame, eye) image on its own even where stereo views coincide
+    /// (the same bytes, more work; for comparisons).
+    pub no_view_reuse: bool,
 }
 
 /// What a pass needs before its first ray.
@@ -59,8 +67,14 @@ pub struct PassPlan {
 /// The plan of a run.
 #[derive(Clone, Debug)]
 pub struct Plan {
-    /// Frames to render.
+    /// The range of frames selected (`--frames`, or all).
     pub frames: Range<usize>,
+    /// The shard of that range this run renders, if any.
+    pub shard: Option<crate::batch::Shard>,
+    /// Frames to render, in order: the range, or the shard's part of it.
+    pub frame_list: Vec<usize>,
+    /// The views of the orbit: eye placement and which views coincide.
+    pub views: crate::views::Views,
     /// The eyes of each frame and their azimuth offsets (degrees).
     pub eyes: Vec<(Eye, f64)>,
     /// Image size of one view.
@@ -126,10 +140,16 @@ impl Plan {
         };
         let eyes = match &scene.stereo {
             None => vec![(Eye::Mono, 0.0)],
-            Some(s) => vec![
+            Some(s) if s.method == crate::scene::StereoMethod::ToeIn => vec![
                 (Eye::Left, -s.angle_deg / 2.0),
                 (Eye::Right, s.angle_deg / 2.0),
             ],
+            Some(_) => vec![(Eye::Left, 0.0), (Eye::Right, 0.0)],
+        };
+        let views = crate::views::Views::new(scene, !opts.no_view_reuse);
+        let frame_list = match opts.shard {
+            Some(shard) => shard.select(frames.clone()),
+            None => frames.clone().collect(),
         };
         let (width, height) = opts.size.unwrap_or((scene.image.width, scene.image.height));
         let voxel_length = geometry
@@ -202,11 +222,15 @@ impl Plan {
             .map(|p| if p.mode.is_intensity() { 1 } else { 4 })
             .max()
             .unwrap_or(1);
-        let film_bytes = threads as u64
-            * eyes.len() as u64
-            * (width * height) as u64
+        // Views kept for one batch of frames (plus those a reused toe-in eye keeps
+        // for later frames), and display copies for the images being encoded.
+        let kept_views = (crate::views::frames_per_batch(threads)
+            + views.reuse_steps().map_or(0, |m| m.unsigned_abs() as usize))
+            * eyes.len()
+            * scene.passes.len();
+        let film_bytes = (width * height) as u64
             * 4
-            * (channels_max as u64 + 3);
+            * (kept_views as u64 * channels_max as u64 + threads as u64 * eyes.len() as u64 * 3);
         let diagonal = {
             let c = geometry.corners(header.sizes);
             (c[7] - c[0]).length()
@@ -215,10 +239,13 @@ impl Plan {
             .iter()
             .map(|p| (diagonal / p.dt + 2.0) * (width * height) as f64)
             .sum::<f64>()
-            * (frames.len() * eyes.len()) as f64;
+            * views.needed(frame_list.iter().copied()) as f64;
         let out = opts.out.clone().unwrap_or_else(|| scene.image.out.clone());
         Ok(Plan {
             frames,
+            shard: opts.shard,
+            frame_list,
+            views,
             eyes,
             width,
             height,
@@ -283,20 +310,21 @@ impl Plan {
                 c[0][0], c[0][1], c[1][0], c[1][1], c[2][0], c[2][1]
             );
         }
-        let views = self.frames.len() * self.eyes.len();
-        let stereo = match &scene.stereo {
-            None => "mono".to_string(),
-            Some(st) => format!("stereo {:.1} deg, {:?}", st.angle_deg, st.layout).to_lowercase(),
+        let shard = match self.shard {
+            Some(sh) => format!(", shard {sh}: {} frames", self.frame_list.len()),
+            None => String::new(),
         };
         let _ = writeln!(
             s,
-            "frames   {}..{} of {} ({} deg sweep, {:.3} deg per frame), {stereo}: {views} views per pass",
+            "frames   {}..{} of {} ({} deg sweep, {:.3} deg per frame){shard}",
             self.frames.start,
             self.frames.end,
             scene.orbit.frames,
             scene.orbit.degrees,
             scene.orbit.degrees / scene.orbit.frames as f64
         );
+        let _ = writeln!(s, "stereo   {}", crate::output::describe_stereo(scene));
+        let _ = writeln!(s, "views    {}", self.views.describe(&self.frame_list));
         let _ = writeln!(
             s,
             "images   {} x {} {:?} -> {}/",
@@ -305,7 +333,7 @@ impl Plan {
             scene.image.format,
             self.out.display()
         );
-        let files = self.frames.len() * Self::files_per_frame(scene) * scene.passes.len();
+        let files = self.frame_list.len() * Self::files_per_frame(scene) * scene.passes.len();
         let _ = writeln!(s, "passes   {} ({files} files)", scene.passes.len());
         for (p, pp) in scene.passes.iter().zip(&self.passes) {
             let _ = writeln!(
@@ -373,6 +401,7 @@ impl Plan {
             }
             let _ = writeln!(s, "               {}", needs.join("; "));
         }
+        s.push_str(&crate::output::describe_outputs(scene, &self.out));
         let _ = writeln!(
             s,
             "memory   about {} (volume {}, precomputed {}, images in flight {} for {} threads)",

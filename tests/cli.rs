@@ -20,8 +20,8 @@ fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-/// Decodes every file of a folder (PNG with the image crate, NRRD by its magic and
-/// our reader) and returns how many there are.
+/// Decodes every image of a folder (PNG with the image crate, NRRD by its magic and
+/// our reader) and returns how many there are (the manifest is checked to be JSON).
 fn decode_all(dir: &Path) -> usize {
     let mut n = 0;
     for e in std::fs::read_dir(dir).expect("output folder exists") {
@@ -32,7 +32,15 @@ fn decode_all(dir: &Path) -> usize {
             "a temporary file was left behind: {}",
             p.display()
         );
+        if name == "manifest.d" && p.is_dir() {
+            continue;
+        }
         match p.extension().and_then(|e| e.to_str()) {
+            Some("json") if name == "manifest.json" => {
+                let _: serde_json::Value =
+                    serde_json::from_slice(&std::fs::read(&p).unwrap()).expect("a JSON manifest");
+                continue;
+            }
             Some("png") => {
                 image::open(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
             }
@@ -127,6 +135,7 @@ fn render_writes_numbered_sequences() {
     let mut names: Vec<String> = std::fs::read_dir(tmp.path().join("out/s"))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.starts_with("manifest"))
         .collect();
     names.sort();
     assert_eq!(

@@ -69,6 +69,38 @@ pub struct SceneArgs {
     /// Largest voxel buffer to allocate, e.g. `8G`, `512M` (default: 16G or 3/4 of RAM).
     #[arg(long, value_name = "BYTES", value_parser = parse_bytes)]
     pub max_memory: Option<u64>,
+    /// Render the K-th of N interleaved parts of the frames (K from 0 to N-1): frames
+    /// K, K+N, K+2N, ... of the selected range. `auto` takes K and N from a Slurm job
+    /// array (SLURM_ARRAY_TASK_ID, _COUNT and _MIN).
+    #[arg(long, value_name = "K/N|auto", value_parser = parse_shard)]
+    pub shard: Option<ShardArg>,
+    /// Skip the images that the output folder's manifest shows are complete and
+    /// belong to this very scene (same scene, volume header, size and version).
+    #[arg(long)]
+    pub resume: bool,
+    /// Render both eyes of every stereo frame even where a view equals one of
+    /// another frame (same bytes, more work; for comparisons).
+    #[arg(long)]
+    pub no_view_reuse: bool,
+}
+
+/// A `--shard` value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShardArg {
+    /// From the Slurm environment.
+    Auto,
+    /// Given on the command line.
+    Fixed(volcast::batch::Shard),
+}
+
+fn parse_shard(s: &str) -> Result<ShardArg, String> {
+    if s.trim() == "auto" {
+        Ok(ShardArg::Auto)
+    } else {
+        s.parse()
+            .map(ShardArg::Fixed)
+            .map_err(|e: volcast::batch::ShardError| e.to_string())
+    }
 }
 
 #[derive(Debug, Args)]
@@ -166,6 +198,20 @@ mod tests {
         assert_eq!(parse_frames("7"), Ok(7..8));
         assert!(parse_frames("5..2").is_err());
         assert!(parse_frames("a..b").is_err());
+    }
+
+    #[test]
+    fn shards() {
+        assert_eq!(parse_shard("auto"), Ok(ShardArg::Auto));
+        assert_eq!(
+            parse_shard("2/3"),
+            Ok(ShardArg::Fixed(volcast::batch::Shard {
+                index: 2,
+                count: 3
+            }))
+        );
+        assert!(parse_shard("3/3").unwrap_err().contains("below N"));
+        assert!(parse_shard("x").unwrap_err().contains("expected K/N"));
     }
 
     #[test]

@@ -16,6 +16,14 @@ pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
         .check(&header.sizes, header.scalar_type.size())
         .with_context(context)?;
     println!("{}", plan.describe(&scene, &header));
+    if opts.resume {
+        let done =
+            volcast::pipeline::completed_images(&scene, &header, &plan).with_context(context)?;
+        println!(
+            "resume   {done} of {} images of these frames are complete and will be skipped",
+            plan.frame_list.len() * scene.passes.len()
+        );
+    }
     for w in &scene.warnings {
         println!("warning  {w}");
     }

@@ -7,7 +7,9 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use volcast::pipeline::{self, Progress};
 use volcast::volume::human_bytes;
 
-use super::args::{RenderArgs, SceneArgs};
+use volcast::batch::Shard;
+
+use super::args::{RenderArgs, SceneArgs, ShardArg};
 
 /// The scene, options and limits common to `render` and `check`.
 pub(super) fn prepare(
@@ -18,11 +20,19 @@ pub(super) fn prepare(
     volcast::volume::Limits,
 )> {
     let scene = volcast::scene::load(&a.scene)?;
+    let shard = match a.shard {
+        None => None,
+        Some(ShardArg::Fixed(s)) => Some(s),
+        Some(ShardArg::Auto) => Some(Shard::from_slurm(|k| std::env::var(k).ok())?),
+    };
     let opts = volcast::plan::RunOptions {
         out: a.out.clone(),
         frames: a.frames.clone(),
         size: a.size,
         threads: a.threads.map(usize::from),
+        shard,
+        resume: a.resume,
+        no_view_reuse: a.no_view_reuse,
     };
     let mut limits = volcast::volume::Limits::default();
     if let Some(m) = a.max_memory {
@@ -89,27 +99,64 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     })?
     .with_context(|| format!("rendering {}", scene.path.display()))?;
     if !a.quiet {
-        let rate = summary.samples as f64 / summary.seconds.max(1e-9);
-        let folder = summary
-            .files
-            .first()
-            .and_then(|f| f.parent())
-            .map(|p| p.display().to_string())
-            .unwrap_or_else(|| "-".into());
-        let bytes: u64 = summary
-            .files
-            .iter()
-            .filter_map(|f| std::fs::metadata(f).ok())
-            .map(|m| m.len())
-            .sum();
-        eprintln!(
-            "volcast: {} files ({} views, {}) in {:.2} s, {:.1} M samples/s -> {folder}",
-            summary.files.len(),
-            summary.views,
-            human_bytes(bytes),
-            summary.seconds,
-            rate / 1e6
-        );
+        report(&summary);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The closing summary, on stderr.
+fn report(summary: &pipeline::Summary) {
+    let rate = summary.samples as f64 / summary.seconds.max(1e-9);
+    let folder = summary
+        .manifest
+        .as_ref()
+        .and_then(|m| m.path.parent())
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|| "-".into());
+    let bytes: u64 = summary
+        .files
+        .iter()
+        .filter_map(|f| std::fs::metadata(f).ok())
+        .map(|m| m.len())
+        .sum();
+    let skipped = if summary.skipped > 0 {
+        format!(", {} images already complete", summary.skipped)
+    } else {
+        String::new()
+    };
+    eprintln!(
+        "volcast: {} files ({} views rendered{skipped}, {}) in {:.2} s, {:.1} M samples/s -> {folder}",
+        summary.files.len(),
+        summary.views,
+        human_bytes(bytes),
+        summary.seconds,
+        rate / 1e6
+    );
+    if let Some(m) = &summary.manifest {
+        if m.complete() {
+            eprintln!(
+                "volcast: manifest {}: all {} images complete",
+                m.path.display(),
+                m.total
+            );
+        } else {
+            eprintln!(
+                "volcast: manifest {}: {} of {} images done; the rest come from other shards or runs (animations are assembled once every frame exists: rerun with --resume to finish)",
+                m.path.display(),
+                m.done,
+                m.total
+            );
+        }
+    }
+    for a in &summary.animations {
+        eprintln!(
+            "volcast: animation {} ({} frames at {} fps)",
+            a.path.display(),
+            a.frames,
+            (a.fps * 1000.0).round() / 1000.0
+        );
+    }
+    for n in &summary.notes {
+        eprintln!("volcast: note: {n}");
+    }
 }

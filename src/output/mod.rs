@@ -1,9 +1,13 @@
-//! From films to files: grey windows and colour, stereo layouts, encoders, and
-//! atomic writes. Knows nothing about render modes beyond what a film holds and
-//! whether its values are intensities, depths or RGBA.
+//! From films to files: grey windows and colour, stereo layouts, encoders, atomic
+//! writes, the output folder's manifest and animations. Knows nothing about render
+//! modes beyond what a film holds and whether its values are intensities, depths or
+//! RGBA.
 
+pub mod animation;
 pub mod display;
 pub mod encode;
+pub mod manifest;
+pub mod sha256;
 pub mod stereo;
 pub mod write;
 
@@ -12,8 +16,12 @@ pub use write::write_atomic;
 
 use std::path::{Path, PathBuf};
 
+use crate::scene::{
+    Anaglyph, AnaglyphColors, AnimationFormat, Format, Layout, Scene, Separation, StereoMethod,
+};
+
 /// Which eye an image belongs to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Eye {
     /// No stereo.
     Mono,
@@ -31,6 +39,91 @@ pub fn frame_path(out: &Path, pass: &str, frame: usize, eye: Eye, ext: &str) -> 
         Eye::Right => "_right",
     };
     out.join(format!("{pass}_{frame:04}{suffix}.{ext}"))
+}
+
+/// One line describing the stereo settings (for `volcast check`).
+pub fn describe_stereo(scene: &Scene) -> String {
+    let Some(st) = &scene.stereo else {
+        return "none (one view per frame)".into();
+    };
+    let method = match st.method {
+        StereoMethod::ToeIn => format!(
+            "toe-in, eyes {} degrees apart (each turned {} about up)",
+            st.angle_deg,
+            st.angle_deg / 2.0
+        ),
+        StereoMethod::Parallel(Separation::World(w)) => {
+            format!("parallel (off-axis), eyes {w} world units apart, converging at the target")
+        }
+        StereoMethod::Parallel(Separation::Fraction(f)) => format!(
+            "parallel (off-axis), eyes {f:.4} x the eye-target distance apart, converging at the target"
+        ),
+    };
+    let layout = match st.layout {
+        Layout::Pair => "pair (_left and _right files)".to_string(),
+        Layout::SideBySide => format!("side-by-side (left view on the left), gap {} px", st.gap),
+        Layout::CrossEyed => format!("cross-eyed (right view on the left), gap {} px", st.gap),
+        Layout::Anaglyph => format!(
+            "anaglyph, {} glasses, {} (grey passes use luminance)",
+            match st.anaglyph {
+                Anaglyph::RedCyan => "red-cyan",
+                Anaglyph::RedGreen => "red-green",
+            },
+            match st.anaglyph_colors {
+                AnaglyphColors::Color => "colour: left red, right green and blue",
+                AnaglyphColors::HalfColor => "half-colour: left luminance as red, right colours",
+                AnaglyphColors::Gray => "luminance of both views",
+            }
+        ),
+    };
+    format!("{method}; layout {layout}")
+}
+
+/// Lines describing the manifest, animations and ffmpeg commands of a run into
+/// `out` (for `volcast check`).
+pub fn describe_outputs(scene: &Scene, out: &Path) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "manifest {} (records in {}/, used by --resume)",
+        out.join(manifest::MANIFEST).display(),
+        out.join(manifest::RECORDS).display()
+    );
+    let seqs = animation::sequences(scene);
+    if let Some(a) = &scene.animation {
+        let files: Vec<String> = seqs
+            .iter()
+            .flat_map(|q| {
+                a.formats
+                    .iter()
+                    .map(move |&f| format!("{}.{}", q.stem(), f.extension()))
+            })
+            .collect();
+        let gif = if a.formats.contains(&AnimationFormat::Gif) {
+            format!(
+                ", GIF at {} fps ({} hundredths per frame)",
+                100.0 / animation::gif_delay(a.fps) as f64,
+                animation::gif_delay(a.fps)
+            )
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            s,
+            "animate  {} at {} fps{gif}, {}; written once every frame exists",
+            files.join(", "),
+            a.fps,
+            if a.looping { "looping" } else { "playing once" }
+        );
+    }
+    if scene.image.format != Format::Nrrd {
+        let fps = scene.animation.as_ref().map_or(24.0, |a| a.fps);
+        for q in &seqs {
+            let _ = writeln!(s, "video    {}", animation::ffmpeg_command(out, q, fps));
+        }
+    }
+    s
 }
 
 #[cfg(test)]

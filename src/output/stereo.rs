@@ -2,7 +2,7 @@
 //! parallel viewing, swapped for cross-eyed viewing, or an anaglyph.
 
 use crate::render::Film;
-use crate::scene::Anaglyph;
+use crate::scene::{Anaglyph, AnaglyphColors};
 
 /// `first | gap | second`, the gap filled with `fill` (one value per channel).
 pub fn side_by_side(first: &Film, second: &Film, gap: usize, fill: &[f32]) -> Film {
@@ -38,19 +38,36 @@ fn luma(px: &[f32]) -> f32 {
     }
 }
 
-/// An anaglyph of two display images: red from the left eye's luminance; green and
-/// blue (red-cyan) or green only (red-green) from the right eye's.
-pub fn anaglyph(left: &Film, right: &Film, glasses: Anaglyph) -> Film {
+/// The RGB of a display pixel (grey pixels repeated).
+fn rgb(px: &[f32]) -> [f32; 3] {
+    if px.len() >= 3 {
+        [px[0], px[1], px[2]]
+    } else {
+        [px[0]; 3]
+    }
+}
+
+/// An anaglyph of two display images: the red channel from the left view, green
+/// and blue (red-cyan) or green only (red-green, blue 0) from the right view.
+/// `colors` says what is taken: `Color` the views' own channels (a full-colour
+/// anaglyph: left red, right green and blue), `HalfColor` the left view's luminance
+/// for red and the right view's channels for the rest, `Gray` luminance for all
+/// (Rec. 709 luma). For grey images all three are the same.
+pub fn anaglyph(left: &Film, right: &Film, glasses: Anaglyph, colors: AnaglyphColors) -> Film {
     assert_eq!((left.width, left.height), (right.width, right.height));
     let mut out = Film::new(left.width, left.height, 3);
     let l = left.data.chunks_exact(left.channels);
     let r = right.data.chunks_exact(right.channels);
     for ((dst, lp), rp) in out.data.chunks_exact_mut(3).zip(l).zip(r) {
-        let (yl, yr) = (luma(lp), luma(rp));
-        dst[0] = yl;
-        dst[1] = yr;
+        let (lc, rc) = match colors {
+            AnaglyphColors::Color => (rgb(lp), rgb(rp)),
+            AnaglyphColors::HalfColor => ([luma(lp); 3], rgb(rp)),
+            AnaglyphColors::Gray => ([luma(lp); 3], [luma(rp); 3]),
+        };
+        dst[0] = lc[0];
+        dst[1] = rc[1];
         dst[2] = match glasses {
-            Anaglyph::RedCyan => yr,
+            Anaglyph::RedCyan => rc[2],
             Anaglyph::RedGreen => 0.0,
         };
     }
@@ -79,9 +96,32 @@ mod tests {
 
     #[test]
     fn anaglyph_channels_come_from_the_right_eyes() {
-        let a = anaglyph(&film(1, 0.2), &film(1, 0.9), Anaglyph::RedCyan);
-        assert_eq!(&a.data[..3], &[0.2, 0.9, 0.9]);
-        let a = anaglyph(&film(1, 0.2), &film(1, 0.9), Anaglyph::RedGreen);
-        assert_eq!(&a.data[..3], &[0.2, 0.9, 0.0]);
+        for colors in [
+            AnaglyphColors::Color,
+            AnaglyphColors::HalfColor,
+            AnaglyphColors::Gray,
+        ] {
+            let a = anaglyph(&film(1, 0.2), &film(1, 0.9), Anaglyph::RedCyan, colors);
+            assert_eq!(&a.data[..3], &[0.2, 0.9, 0.9]);
+            let a = anaglyph(&film(1, 0.2), &film(1, 0.9), Anaglyph::RedGreen, colors);
+            assert_eq!(&a.data[..3], &[0.2, 0.9, 0.0]);
+        }
+    }
+
+    #[test]
+    fn colour_anaglyphs() {
+        let px = |r: f32, g: f32, b: f32| Film {
+            width: 1,
+            height: 1,
+            channels: 3,
+            data: vec![r, g, b],
+        };
+        let (l, r) = (px(0.8, 0.1, 0.2), px(0.3, 0.6, 0.4));
+        let a = anaglyph(&l, &r, Anaglyph::RedCyan, AnaglyphColors::Color);
+        assert_eq!(a.data, vec![0.8, 0.6, 0.4]);
+        let a = anaglyph(&l, &r, Anaglyph::RedCyan, AnaglyphColors::HalfColor);
+        assert_eq!(a.data, vec![luma(&l.data), 0.6, 0.4]);
+        let a = anaglyph(&l, &r, Anaglyph::RedGreen, AnaglyphColors::Gray);
+        assert_eq!(a.data, vec![luma(&l.data), luma(&r.data), 0.0]);
     }
 }

@@ -38,6 +38,13 @@ pub struct View {
     pub height: usize,
     /// Bounding sphere of the volume's box (depth is measured from where rays enter it).
     pub sphere: (DVec3, f64),
+    /// Distance from the eye to the target along `forward` (perspective: the
+    /// camera's distance; orthographic: from the plane the rays start from).
+    pub distance: f64,
+    /// Horizontal offset of the image window, in the units of `half_width`: 0 for
+    /// a symmetric frustum; an off-axis stereo eye's window is shifted so that
+    /// both eyes' windows coincide at the target distance.
+    pub shift: f64,
 }
 
 /// A ray in world space: `origin + t * dir`, `|dir| = 1`, `t >= 0`.
@@ -91,6 +98,8 @@ impl View {
                     width,
                     height,
                     sphere,
+                    distance,
+                    shift: 0.0,
                 }
             }
             Projection::Orthographic => {
@@ -110,8 +119,26 @@ impl View {
                     width,
                     height,
                     sphere,
+                    distance: 2.0 * reach + 1.0,
+                    shift: 0.0,
                 }
             }
+        }
+    }
+
+    /// This view's eye moved by `offset` world units along `right`, looking in the
+    /// same direction, with its image window shifted so that it still covers the
+    /// same rectangle at the target distance (an off-axis, "parallel" stereo eye).
+    /// A point at the target distance then projects to the same pixel for every
+    /// offset; nearer points move against the offset, farther ones with it.
+    ///
+    /// Only meaningful for perspective views (orthographic eyes with parallel
+    /// directions see the same picture; the scene resolver refuses that combination).
+    pub fn off_axis(&self, offset: f64) -> View {
+        View {
+            eye: self.eye + self.right * offset,
+            shift: self.shift - offset / self.distance,
+            ..*self
         }
     }
 
@@ -124,7 +151,7 @@ impl View {
             Projection::Perspective => Ray {
                 origin: self.eye,
                 dir: (self.forward
-                    + self.right * (px * self.half_width)
+                    + self.right * (px * self.half_width + self.shift)
                     + self.up * (py * self.half_height))
                     .normalize(),
             },
@@ -253,6 +280,48 @@ mod tests {
         let d = v.eye.length();
         // the sphere's silhouette touches the edge of the field of view
         assert!(((2.0 / d).asin() - 15f64.to_radians()).abs() < 1e-9);
+    }
+
+    /// Pixel position (x, y) where a world point appears in a perspective view.
+    fn project(v: &View, p: DVec3) -> (f64, f64) {
+        let d = p - v.eye;
+        let (z, x, y) = (d.dot(v.forward), d.dot(v.right), d.dot(v.up));
+        let px = (x / z - v.shift) / v.half_width;
+        let py = y / z / v.half_height;
+        (
+            (px + 1.0) / 2.0 * v.width as f64,
+            (1.0 - py) / 2.0 * v.height as f64,
+        )
+    }
+
+    #[test]
+    fn off_axis_eyes_converge_at_the_target_distance() {
+        let mut c = cam(Projection::Perspective);
+        c.distance = Some(10.0);
+        c.target = Some(DVec3::new(0.5, 0.0, 0.0));
+        let centre = View::new(&c, 25.0, 64, 48, (DVec3::ZERO, 1.0));
+        assert!((centre.distance - 10.0).abs() < 1e-12);
+        let (l, r) = (centre.off_axis(-0.3), centre.off_axis(0.3));
+        assert_eq!(l.forward, centre.forward);
+        assert!(((r.eye - l.eye).length() - 0.6).abs() < 1e-12);
+        assert!((r.eye - l.eye).normalize().dot(centre.right) > 1.0 - 1e-12);
+        // on the target plane: no disparity, anywhere in the picture
+        let target = c.target.unwrap();
+        for (dx, dy) in [(0.0, 0.0), (1.0, 0.5), (-2.0, -1.0)] {
+            let p = target + centre.right * dx + centre.up * dy;
+            let (pl, pr) = (project(&l, p), project(&r, p));
+            assert!((pl.0 - pr.0).abs() < 1e-9 && (pl.1 - pr.1).abs() < 1e-9);
+            // and the ray through that pixel hits the point
+            let ray = r.ray(pr.0, pr.1);
+            assert!((ray.origin + ray.dir * (p - ray.origin).length() - p).length() < 1e-9);
+        }
+        // nearer than the target: crossed disparity (left eye sees it further right)
+        let near = target - centre.forward * 3.0;
+        assert!(project(&l, near).0 > project(&r, near).0 + 1.0);
+        let far = target + centre.forward * 3.0;
+        assert!(project(&l, far).0 < project(&r, far).0 - 1.0);
+        // the symmetric view is unchanged by a zero offset
+        assert_eq!(centre.off_axis(0.0), centre);
     }
 
     #[test]

@@ -42,6 +42,11 @@ pub struct Scene {
     pub passes: Vec<RenderPass>,
     /// The light for shaded passes.
     pub light: LightSpec,
+    /// Animated files to assemble from each pass's frames, when requested.
+    pub animation: Option<Animation>,
+    /// The scene file's text as read (recorded in the output's manifest and hashed
+    /// to decide whether existing images belong to this scene).
+    pub text: String,
     /// Legal but suspicious settings, to print before rendering.
     pub warnings: Vec<String>,
 }
@@ -126,17 +131,84 @@ pub enum Anaglyph {
     RedGreen,
 }
 
-/// Stereo settings (toe-in: each eye turned `angle/2` about `up` through the target).
+/// Which colours of the two views an anaglyph keeps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AnaglyphColors {
+    /// Full-colour anaglyph: red from the left view's red, green and blue (red-cyan)
+    /// or green (red-green) from the right view's. Grey images give the same result
+    /// as `Gray`.
+    Color,
+    /// Red from the left view's luminance, the other channels from the right view's
+    /// colours (less retinal rivalry than `Color` for saturated reds).
+    HalfColor,
+    /// Every channel from the views' luminance.
+    Gray,
+}
+
+/// How the eye separation of `parallel` stereo is given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Separation {
+    /// World units between the eyes.
+    World(f64),
+    /// A fraction of the eye-target distance.
+    Fraction(f64),
+}
+
+/// How the two eyes of a stereo frame are placed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StereoMethod {
+    /// Each eye turned `angle/2` about `up` through the target (the course's method).
+    ToeIn,
+    /// Off-axis: eyes shifted along the image's right vector, parallel viewing
+    /// directions, asymmetric frusta that converge at the target distance.
+    Parallel(Separation),
+}
+
+/// Stereo settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Stereo {
-    /// Degrees between the eyes.
+    /// Placement of the eyes.
+    pub method: StereoMethod,
+    /// Degrees between the eyes (toe-in; for `parallel` the separation is in `method`).
     pub angle_deg: f64,
     /// Output layout.
     pub layout: Layout,
     /// Glasses, for the anaglyph layout.
     pub anaglyph: Anaglyph,
+    /// Colours an anaglyph keeps (shaded passes; grey passes always use luminance).
+    pub anaglyph_colors: AnaglyphColors,
     /// Pixels between the halves of side-by-side and cross-eyed images.
     pub gap: usize,
+}
+
+/// Animated file formats written from a pass's frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AnimationFormat {
+    /// Animated GIF (8-bit, a palette per frame).
+    Gif,
+    /// Animated PNG (the frames' own colour type and bit depth).
+    Apng,
+}
+
+impl AnimationFormat {
+    /// File extension.
+    pub fn extension(self) -> &'static str {
+        match self {
+            AnimationFormat::Gif => "gif",
+            AnimationFormat::Apng => "apng",
+        }
+    }
+}
+
+/// The `[animation]` table: whole sequences as animated files.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Animation {
+    /// Formats to write (at least one, no repeats).
+    pub formats: Vec<AnimationFormat>,
+    /// Frames per second.
+    pub fps: f64,
+    /// Loop forever (`true`) or play once.
+    pub looping: bool,
 }
 
 /// Image file format.

@@ -97,7 +97,14 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let camera = r.camera(file.camera.as_ref());
     let orbit = r.orbit(file.orbit.as_ref());
     let image = r.image(file.image.as_ref(), &name);
-    let stereo = file.stereo.as_ref().map(|s| r.stereo(s, image.format));
+    let stereo = file
+        .stereo
+        .as_ref()
+        .map(|s| r.stereo(s, image.format, camera.projection));
+    let animation = file
+        .animation
+        .as_ref()
+        .map(|a| r.animation(a, image.format));
     let light = r.light(file.light.as_ref());
     let materials = r.materials(&file.material);
     let transfers = r.transfers(&file.transfer);
@@ -117,6 +124,8 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         image,
         passes,
         light,
+        animation,
+        text: text.to_string(),
         warnings: r.warnings,
     })
 }
@@ -623,8 +632,19 @@ impl Resolver<'_> {
         im
     }
 
-    fn stereo(&mut self, t: &Spanned<StereoTable>, format: Format) -> Stereo {
+    fn stereo(
+        &mut self,
+        t: &Spanned<StereoTable>,
+        format: Format,
+        projection: Projection,
+    ) -> Stereo {
         let v = t.get_ref();
+        let method_name = self.choice(
+            "method",
+            &v.method,
+            &[("toe-in", false), ("parallel", true)],
+            false,
+        );
         let angle_deg = self.number(
             "angle",
             &v.angle,
@@ -632,6 +652,72 @@ impl Resolver<'_> {
             |x| x > 0.0 && x < 180.0,
             "degrees in (0, 180)",
         );
+        let method = if method_name {
+            let given: Vec<(&str, Range<usize>)> = [
+                ("angle", v.angle.as_ref().map(|s| s.span())),
+                ("separation", v.separation.as_ref().map(|s| s.span())),
+                (
+                    "separation_fraction",
+                    v.separation_fraction.as_ref().map(|s| s.span()),
+                ),
+            ]
+            .into_iter()
+            .filter_map(|(k, s)| s.map(|s| (k, s)))
+            .collect();
+            if given.len() > 1 {
+                let names: Vec<String> = given.iter().map(|(k, _)| format!("`{k}`")).collect();
+                self.err(
+                    given[1].1.clone(),
+                    format!(
+                        "give only one of `angle`, `separation` and `separation_fraction` for parallel stereo (found {})",
+                        names.join(" and ")
+                    ),
+                );
+            }
+            if projection == Projection::Orthographic {
+                self.err(
+                    v.method.as_ref().map_or(t.span(), |m| m.span()),
+                    "method = \"parallel\" needs projection = \"perspective\": orthographic eyes with parallel directions see the same picture (use method = \"toe-in\")",
+                );
+            }
+            let separation = if let Some(s) = &v.separation {
+                Separation::World(self.number(
+                    "separation",
+                    &Some(s.clone()),
+                    1.0,
+                    |x| x > 0.0,
+                    "a positive distance between the eyes in world units",
+                ))
+            } else if let Some(f) = &v.separation_fraction {
+                Separation::Fraction(self.number(
+                    "separation_fraction",
+                    &Some(f.clone()),
+                    0.03,
+                    |x| x > 0.0 && x <= 1.0,
+                    "a fraction of the eye-target distance in (0, 1]",
+                ))
+            } else {
+                // The eyes see the target under `angle`, as toe-in eyes would.
+                Separation::Fraction(2.0 * (angle_deg.to_radians() / 2.0).tan())
+            };
+            StereoMethod::Parallel(separation)
+        } else {
+            for (k, s) in [
+                ("separation", v.separation.as_ref().map(|s| s.span())),
+                (
+                    "separation_fraction",
+                    v.separation_fraction.as_ref().map(|s| s.span()),
+                ),
+            ] {
+                if let Some(span) = s {
+                    self.err(
+                        span,
+                        format!("`{k}` is only used with method = \"parallel\" (toe-in eyes are placed by `angle`)"),
+                    );
+                }
+            }
+            StereoMethod::ToeIn
+        };
         let layout = self.choice(
             "layout",
             &v.layout,
@@ -652,11 +738,29 @@ impl Resolver<'_> {
             ],
             Anaglyph::RedCyan,
         );
-        if let (Some(a), false) = (&v.anaglyph, layout == Layout::Anaglyph) {
-            self.err(
-                a.span(),
-                "`anaglyph` is only used with layout = \"anaglyph\"",
-            );
+        let anaglyph_colors = self.choice(
+            "anaglyph_colors",
+            &v.anaglyph_colors,
+            &[
+                ("color", AnaglyphColors::Color),
+                ("half-color", AnaglyphColors::HalfColor),
+                ("gray", AnaglyphColors::Gray),
+            ],
+            AnaglyphColors::Color,
+        );
+        for (key, value) in [
+            ("anaglyph", v.anaglyph.as_ref().map(|a| a.span())),
+            (
+                "anaglyph_colors",
+                v.anaglyph_colors.as_ref().map(|a| a.span()),
+            ),
+        ] {
+            if let (Some(span), false) = (value, layout == Layout::Anaglyph) {
+                self.err(
+                    span,
+                    format!("`{key}` is only used with layout = \"anaglyph\""),
+                );
+            }
         }
         if layout == Layout::Anaglyph && format == Format::Nrrd {
             self.err(
@@ -682,10 +786,57 @@ impl Resolver<'_> {
             );
         }
         Stereo {
+            method,
             angle_deg,
             layout,
             anaglyph,
+            anaglyph_colors,
             gap,
+        }
+    }
+
+    fn animation(&mut self, t: &Spanned<AnimationTable>, format: Format) -> Animation {
+        let v = t.get_ref();
+        let mut formats = Vec::new();
+        match &v.formats {
+            None => formats.push(AnimationFormat::Gif),
+            Some(list) if list.get_ref().is_empty() => self.err(
+                list.span(),
+                "formats = []: expected a list of \"gif\" and/or \"apng\" (or leave out [animation])",
+            ),
+            Some(list) => {
+                for f in list.get_ref() {
+                    let chosen = self.choice(
+                        "formats",
+                        &Some(f.clone()),
+                        &[("gif", AnimationFormat::Gif), ("apng", AnimationFormat::Apng)],
+                        AnimationFormat::Gif,
+                    );
+                    if formats.contains(&chosen) {
+                        self.err(f.span(), format!("\"{}\" is listed twice", f.get_ref()));
+                    } else {
+                        formats.push(chosen);
+                    }
+                }
+            }
+        }
+        let fps = self.number(
+            "fps",
+            &v.fps,
+            24.0,
+            |x| x > 0.0 && x <= 100.0,
+            "frames per second in (0, 100]",
+        );
+        if format == Format::Nrrd {
+            self.err(
+                t.span(),
+                "[animation] is assembled from the PNG frames: use format = \"png\" or \"png16\" (nrrd frames hold unquantised values)",
+            );
+        }
+        Animation {
+            formats,
+            fps,
+            looping: v.looping.as_ref().is_none_or(|l| *l.get_ref()),
         }
     }
 

@@ -28,6 +28,7 @@ pub struct SceneFile {
     #[serde(default)]
     pub material: BTreeMap<String, Spanned<MaterialTable>>,
     pub light: Option<Spanned<LightTable>>,
+    pub animation: Option<Spanned<AnimationTable>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -73,10 +74,23 @@ pub struct OrbitTable {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StereoTable {
+    pub method: Sp<String>,
     pub angle: Sp<f64>,
+    pub separation: Sp<f64>,
+    pub separation_fraction: Sp<f64>,
     pub layout: Sp<String>,
     pub anaglyph: Sp<String>,
+    pub anaglyph_colors: Sp<String>,
     pub gap: Sp<i64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnimationTable {
+    pub formats: Sp<Vec<Spanned<String>>>,
+    pub fps: Sp<f64>,
+    #[serde(rename = "loop")]
+    pub looping: Sp<bool>,
 }
 
 #[derive(Debug, Deserialize)]

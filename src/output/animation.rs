@@ -1,0 +1,385 @@
+//! Animated GIF and APNG files assembled from a pass's written PNG frames.
+//!
+//! Animations are made from the frame files on disk, after all of them exist, so
+//! they work the same for one run, for shards (the shard that completes the
+//! sequence assembles it) and for resumed runs. One animation per image sequence:
+//! `{pass}.gif` / `{pass}.apng`, or `{pass}_left.*` and `{pass}_right.*` for the
+//! `pair` stereo layout.
+//!
+//! - **APNG** (`png` crate): the frames' own colour type and bit depth (16-bit
+//!   frames stay 16-bit), every frame shown for `1/fps` seconds.
+//! - **GIF** (`gif` crate): 8 bits per sample; grey frames use an exact 256-grey
+//!   palette, colour frames a palette per frame (NeuQuant). GIF delays are whole
+//!   hundredths of a second, so the frame time is `round(100/fps)` hundredths, at
+//!   least 2 (browsers slow smaller delays down): 24 fps plays at 25.
+
+use std::fs::File;
+use std::io::{BufReader, Write};
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use super::write::write_atomic_with;
+use super::{frame_path, Eye};
+use crate::error::Error;
+use crate::scene::{Animation, AnimationFormat, Layout, Scene};
+
+/// One image sequence of a run: a pass and, for the `pair` layout, an eye.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sequence {
+    /// Pass name.
+    pub pass: String,
+    /// `Mono` for single-file layouts.
+    pub eye: Eye,
+}
+
+impl Sequence {
+    /// File stem of the sequence's animations and videos: `mip`, `mip_left`.
+    pub fn stem(&self) -> String {
+        match self.eye {
+            Eye::Mono => self.pass.clone(),
+            Eye::Left => format!("{}_left", self.pass),
+            Eye::Right => format!("{}_right", self.pass),
+        }
+    }
+
+    /// The animation file of `format`.
+    pub fn animation_path(&self, out: &Path, format: AnimationFormat) -> PathBuf {
+        out.join(format!("{}.{}", self.stem(), format.extension()))
+    }
+}
+
+/// The image sequences a scene writes.
+pub fn sequences(scene: &Scene) -> Vec<Sequence> {
+    let eyes: &[Eye] = match scene.stereo {
+        Some(s) if s.layout == Layout::Pair => &[Eye::Left, Eye::Right],
+        _ => &[Eye::Mono],
+    };
+    scene
+        .passes
+        .iter()
+        .flat_map(|p| {
+            eyes.iter().map(|&eye| Sequence {
+                pass: p.name.clone(),
+                eye,
+            })
+        })
+        .collect()
+}
+
+/// GIF frame delay in hundredths of a second.
+pub fn gif_delay(fps: f64) -> u16 {
+    (100.0 / fps).round().clamp(2.0, 65535.0) as u16
+}
+
+/// APNG frame delay as a fraction of a second `(numerator, denominator)`.
+pub fn apng_delay(fps: f64) -> (u16, u16) {
+    for scale in [1.0, 1000.0, 100.0, 10.0] {
+        let den = fps * scale;
+        if (scale == 1.0 && den.fract() == 0.0 && den <= 65535.0)
+            || (scale > 1.0 && den.round() <= 65535.0 && den.round() >= 1.0)
+        {
+            return (scale as u16, den.round() as u16);
+        }
+    }
+    (1, fps.round().clamp(1.0, 65535.0) as u16)
+}
+
+/// What was written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Written {
+    /// The animation file.
+    pub path: PathBuf,
+    /// Its format.
+    pub format: AnimationFormat,
+    /// Frames in it.
+    pub frames: usize,
+    /// The frame rate it plays at (GIF: after rounding the delay).
+    pub fps: f64,
+}
+
+/// Writes every animation of `scene` into `out` from the frame files there.
+pub fn assemble(out: &Path, scene: &Scene, anim: &Animation) -> Result<Vec<Written>, Error> {
+    let mut written = Vec::new();
+    for seq in sequences(scene) {
+        let frames: Vec<PathBuf> = (0..scene.orbit.frames)
+            .map(|k| frame_path(out, &seq.pass, k, seq.eye, "png"))
+            .collect();
+        for &format in &anim.formats {
+            let path = seq.animation_path(out, format);
+            let fps = match format {
+                AnimationFormat::Gif => write_gif(&path, &frames, anim)?,
+                AnimationFormat::Apng => write_apng(&path, &frames, anim)?,
+            };
+            written.push(Written {
+                path,
+                format,
+                frames: frames.len(),
+                fps,
+            });
+        }
+    }
+    Ok(written)
+}
+
+/// A decoded PNG frame, as stored (no conversion).
+struct Decoded {
+    width: u32,
+    height: u32,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    data: Vec<u8>,
+}
+
+fn decode(path: &Path) -> Result<Decoded, Error> {
+    let fail = |message: String| Error::Encode {
+        path: path.to_path_buf(),
+        message,
+    };
+    let file = File::open(path).map_err(|e| fail(format!("cannot read a frame: {e}")))?;
+    let mut decoder = png::Decoder::new(BufReader::new(file));
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    let mut reader = decoder
+        .read_info()
+        .map_err(|e| fail(format!("not a PNG frame: {e}")))?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| fail("frame too large".into()))?;
+    let mut data = vec![0; size];
+    let info = reader
+        .next_frame(&mut data)
+        .map_err(|e| fail(format!("cannot decode the frame: {e}")))?;
+    data.truncate(info.buffer_size());
+    Ok(Decoded {
+        width: info.width,
+        height: info.height,
+        color: info.color_type,
+        depth: info.bit_depth,
+        data,
+    })
+}
+
+/// Checks that a frame has the first frame's size and type.
+fn same_kind(first: &Decoded, d: &Decoded, path: &Path) -> Result<(), Error> {
+    if (d.width, d.height, d.color, d.depth)
+        == (first.width, first.height, first.color, first.depth)
+    {
+        Ok(())
+    } else {
+        Err(Error::Encode {
+            path: path.to_path_buf(),
+            message: format!(
+                "frames of one sequence must share size and type: this one is {}x{} {:?} {:?}, the first {}x{} {:?} {:?}",
+                d.width, d.height, d.color, d.depth, first.width, first.height, first.color, first.depth
+            ),
+        })
+    }
+}
+
+/// Frames per batch decoded in parallel.
+fn batch() -> usize {
+    (2 * rayon::current_num_threads()).max(2)
+}
+
+fn write_apng(dest: &Path, frames: &[PathBuf], anim: &Animation) -> Result<f64, Error> {
+    let first = decode(&frames[0])?;
+    let (num, den) = apng_delay(anim.fps);
+    let fail = |e: png::EncodingError| Error::Encode {
+        path: dest.to_path_buf(),
+        message: e.to_string(),
+    };
+    let mut inner: Result<(), Error> = Ok(());
+    let io = write_atomic_with(dest, |w: &mut dyn Write| {
+        let result = (|| {
+            let mut enc = png::Encoder::new(&mut *w, first.width, first.height);
+            enc.set_color(first.color);
+            enc.set_depth(first.depth);
+            enc.set_animated(frames.len() as u32, if anim.looping { 0 } else { 1 })
+                .map_err(fail)?;
+            enc.set_frame_delay(num, den).map_err(fail)?;
+            let mut writer = enc.write_header().map_err(fail)?;
+            for chunk in frames.chunks(batch()) {
+                let decoded: Vec<Decoded> = chunk
+                    .par_iter()
+                    .map(|p| decode(p))
+                    .collect::<Result<_, _>>()?;
+                for (d, p) in decoded.iter().zip(chunk) {
+                    same_kind(&first, d, p)?;
+                    writer.write_image_data(&d.data).map_err(fail)?;
+                }
+            }
+            writer.finish().map_err(fail)
+        })();
+        result.map_err(|e| {
+            inner = Err(e);
+            std::io::Error::other("animation not written")
+        })
+    });
+    inner?;
+    io.map_err(|source| Error::Output {
+        path: dest.to_path_buf(),
+        source,
+    })?;
+    Ok(den as f64 / num as f64)
+}
+
+/// 8-bit samples of a decoded frame (16-bit samples rounded to 8 bits).
+fn eight_bit(d: &Decoded) -> Vec<u8> {
+    match d.depth {
+        png::BitDepth::Sixteen => d
+            .data
+            .chunks_exact(2)
+            .map(|b| ((u16::from_be_bytes([b[0], b[1]]) as u32 * 255 + 32767) / 65535) as u8)
+            .collect(),
+        _ => d.data.clone(),
+    }
+}
+
+fn write_gif(dest: &Path, frames: &[PathBuf], anim: &Animation) -> Result<f64, Error> {
+    let first = decode(&frames[0])?;
+    let fail = |message: String| Error::Encode {
+        path: dest.to_path_buf(),
+        message,
+    };
+    let (w, h) = match (u16::try_from(first.width), u16::try_from(first.height)) {
+        (Ok(w), Ok(h)) => (w, h),
+        _ => {
+            return Err(fail(format!(
+            "GIF images are at most 65535 pixels wide and high; these frames are {}x{} (use apng)",
+            first.width, first.height
+        )))
+        }
+    };
+    let grey = match first.color {
+        png::ColorType::Grayscale => true,
+        png::ColorType::Rgb => false,
+        other => {
+            return Err(fail(format!(
+                "expected grey or RGB frames, found {other:?}"
+            )))
+        }
+    };
+    let delay = gif_delay(anim.fps);
+    let palette: Vec<u8> = if grey {
+        (0..=255u8).flat_map(|v| [v, v, v]).collect()
+    } else {
+        Vec::new()
+    };
+    let mut inner: Result<(), Error> = Ok(());
+    let io = write_atomic_with(dest, |out: &mut dyn Write| {
+        let result = (|| {
+            let gif_err = |e: gif::EncodingError| fail(e.to_string());
+            let mut enc = gif::Encoder::new(&mut *out, w, h, &palette).map_err(gif_err)?;
+            if anim.looping {
+                enc.set_repeat(gif::Repeat::Infinite).map_err(gif_err)?;
+            }
+            for chunk in frames.chunks(batch()) {
+                let encoded: Vec<gif::Frame<'static>> = chunk
+                    .par_iter()
+                    .map(|p| {
+                        let d = decode(p)?;
+                        same_kind(&first, &d, p)?;
+                        let px = eight_bit(&d);
+                        let mut f = if grey {
+                            gif::Frame {
+                                width: w,
+                                height: h,
+                                buffer: px.into(),
+                                ..gif::Frame::default()
+                            }
+                        } else {
+                            gif::Frame::from_rgb_speed(w, h, &px, 10)
+                        };
+                        f.delay = delay;
+                        Ok(f)
+                    })
+                    .collect::<Result<_, Error>>()?;
+                for f in &encoded {
+                    enc.write_frame(f).map_err(gif_err)?;
+                }
+            }
+            Ok(())
+        })();
+        result.map_err(|e| {
+            inner = Err(e);
+            std::io::Error::other("animation not written")
+        })
+    });
+    inner?;
+    io.map_err(|source| Error::Output {
+        path: dest.to_path_buf(),
+        source,
+    })?;
+    Ok(100.0 / delay as f64)
+}
+
+/// Quotes a path for a POSIX shell when it needs it.
+fn shell_quote(s: &str) -> String {
+    if !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || "%_./-:+=@".contains(c))
+    {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', r"'\''"))
+    }
+}
+
+/// The ffmpeg command that turns a sequence's numbered PNGs into an H.264 MP4
+/// (padded to even sizes, which yuv420p needs).
+pub fn ffmpeg_command(out: &Path, seq: &Sequence, fps: f64) -> String {
+    let suffix = match seq.eye {
+        Eye::Mono => "",
+        Eye::Left => "_left",
+        Eye::Right => "_right",
+    };
+    let input = out.join(format!("{}_%04d{suffix}.png", seq.pass));
+    let output = out.join(format!("{}.mp4", seq.stem()));
+    format!(
+        "ffmpeg -framerate {fps} -i {} -vf 'pad=ceil(iw/2)*2:ceil(ih/2)*2' -c:v libx264 -pix_fmt yuv420p -crf 18 {}",
+        shell_quote(&input.to_string_lossy()),
+        shell_quote(&output.to_string_lossy())
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn delays() {
+        assert_eq!(gif_delay(24.0), 4);
+        assert_eq!(gif_delay(10.0), 10);
+        assert_eq!(gif_delay(100.0), 2);
+        assert_eq!(gif_delay(0.5), 200);
+        assert_eq!(apng_delay(24.0), (1, 24));
+        assert_eq!(apng_delay(29.97), (1000, 29970));
+        assert_eq!(apng_delay(0.5), (1000, 500));
+        assert_eq!(apng_delay(70.25), (100, 7025));
+    }
+
+    #[test]
+    fn ffmpeg_commands_quote_when_needed() {
+        let seq = Sequence {
+            pass: "mip".into(),
+            eye: Eye::Left,
+        };
+        let c = ffmpeg_command(Path::new("out/head"), &seq, 24.0);
+        assert_eq!(
+            c,
+            "ffmpeg -framerate 24 -i out/head/mip_%04d_left.png -vf 'pad=ceil(iw/2)*2:ceil(ih/2)*2' -c:v libx264 -pix_fmt yuv420p -crf 18 out/head/mip_left.mp4"
+        );
+        let c = ffmpeg_command(
+            Path::new("my out"),
+            &Sequence {
+                pass: "a".into(),
+                eye: Eye::Mono,
+            },
+            12.5,
+        );
+        assert!(
+            c.contains("-i 'my out/a_%04d.png'") && c.contains("12.5"),
+            "{c}"
+        );
+    }
+}

@@ -1,0 +1,638 @@
+//! The output folder's manifest: what was rendered, from what, and how, so that a
+//! folder of images can be reproduced (and resumed) from itself.
+//!
+//! - `manifest.d/{pass}_{frame:04}.json`: one record per (pass, frame), written
+//!   atomically right after that frame's images. It holds the scene hash, the
+//!   files (size and SHA-256), each eye's view parameters, the grey window, the
+//!   samples and the seconds. Records are the source of truth: concurrent shards
+//!   write disjoint records and never a shared file, so none can clobber another's.
+//! - `manifest.json`: the merge of the records that belong to the current scene,
+//!   with the scene file's text, the resolved scene, the volume's description, and
+//!   whether the sequence is complete. Every run rewrites it at its end; a run
+//!   re-reads the records after writing it and merges again if another shard added
+//!   records meanwhile, so the last shard to finish leaves the full manifest.
+//!
+//! The scene hash ([`scene_digest`]) is a SHA-256 over a canonical encoding of the
+//! scene as parsed (comments, spacing and key order do not matter; `[image] out`
+//! and `[animation]` are left out because they do not change any image), the
+//! volume's header, the image size and the program version. `--resume` skips a
+//! (pass, frame) only when its record has this hash and all its files exist with
+//! the recorded sizes.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Value};
+
+use super::sha256::Sha256;
+use super::write::write_atomic;
+use crate::error::Error;
+use crate::render::View;
+use crate::scene::{
+    AnaglyphColors, Layout, LightKindSpec, Mode, Projection, Scene, Separation, StereoMethod,
+};
+use crate::views::ViewKey;
+use crate::volume::VolumeHeader;
+
+/// File name of the merged manifest.
+pub const MANIFEST: &str = "manifest.json";
+/// Folder of the per-(pass, frame) records.
+pub const RECORDS: &str = "manifest.d";
+/// Identifies the manifest's layout.
+pub const MANIFEST_FORMAT: &str = "volcast-manifest-1";
+
+/// One written file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FileRecord {
+    /// File name in the output folder.
+    pub name: String,
+    /// Size in bytes.
+    pub bytes: u64,
+    /// SHA-256 of the file's bytes (hex).
+    pub sha256: String,
+}
+
+/// The parameters of one eye's view.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ViewRecord {
+    /// `mono`, `left` or `right`.
+    pub eye: String,
+    /// The distinct view shown: orbit position (frames) and eye there (a reused
+    /// toe-in left eye names the right eye of an earlier position).
+    pub view: (i64, String),
+    /// Camera azimuth plus orbit and toe-in offsets, degrees.
+    pub azimuth_deg: f64,
+    /// Camera elevation, degrees.
+    pub elevation_deg: f64,
+    /// `perspective` or `orthographic`.
+    pub projection: String,
+    /// Eye position (orthographic: centre of the plane the rays start from).
+    pub eye_position: [f64; 3],
+    /// Unit viewing direction.
+    pub forward: [f64; 3],
+    /// Unit image right.
+    pub right: [f64; 3],
+    /// Unit image up.
+    pub up: [f64; 3],
+    /// Half the image width (perspective: as a tangent; orthographic: world units).
+    pub half_width: f64,
+    /// Half the image height, likewise.
+    pub half_height: f64,
+    /// Horizontal offset of the image window (off-axis stereo), units of `half_width`.
+    pub window_shift: f64,
+    /// Distance from the eye to the target along `forward`.
+    pub target_distance: f64,
+    /// Field samples taken to render this view.
+    pub samples: u64,
+}
+
+impl ViewRecord {
+    /// The record of `view`, shown to `eye` as the distinct view `key`.
+    pub fn new(
+        eye: super::Eye,
+        key: ViewKey,
+        azimuth_deg: f64,
+        elevation_deg: f64,
+        view: &View,
+        samples: u64,
+    ) -> ViewRecord {
+        ViewRecord {
+            eye: eye_name(eye).into(),
+            view: (key.position, eye_name(key.eye).into()),
+            azimuth_deg,
+            elevation_deg,
+            projection: match view.projection {
+                Projection::Perspective => "perspective",
+                Projection::Orthographic => "orthographic",
+            }
+            .into(),
+            eye_position: view.eye.to_array(),
+            forward: view.forward.to_array(),
+            right: view.right.to_array(),
+            up: view.up.to_array(),
+            half_width: view.half_width,
+            half_height: view.half_height,
+            window_shift: view.shift,
+            target_distance: view.distance,
+            samples,
+        }
+    }
+}
+
+/// What was written for one (pass, frame).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameRecord {
+    /// [`scene_digest`] of the scene the images belong to.
+    pub scene_hash: String,
+    /// The program version that wrote them.
+    pub volcast_version: String,
+    /// Pass name.
+    pub pass: String,
+    /// Frame number.
+    pub frame: usize,
+    /// The files, in eye order.
+    pub files: Vec<FileRecord>,
+    /// The views, in eye order.
+    pub views: Vec<ViewRecord>,
+    /// Grey window `[lo, hi]` of intensity passes written as PNG.
+    pub window: Option<[f64; 2]>,
+    /// Field samples of this frame's views (a view shared with another frame is
+    /// counted in both).
+    pub samples: u64,
+    /// Seconds spent rendering this frame's views (a shared view counts where it
+    /// was rendered) and writing its files.
+    pub seconds: f64,
+    /// `K/N` when written by a shard.
+    pub shard: Option<String>,
+}
+
+fn eye_name(eye: super::Eye) -> &'static str {
+    match eye {
+        super::Eye::Mono => "mono",
+        super::Eye::Left => "left",
+        super::Eye::Right => "right",
+    }
+}
+
+/// Where the record of (`pass`, `frame`) lives.
+pub fn record_path(out: &Path, pass: &str, frame: usize) -> PathBuf {
+    out.join(RECORDS).join(format!("{pass}_{frame:04}.json"))
+}
+
+/// Writes a record atomically (the records folder must exist).
+pub fn write_record(out: &Path, record: &FrameRecord) -> Result<(), Error> {
+    let path = record_path(out, &record.pass, record.frame);
+    let text = serde_json::to_vec_pretty(record).map_err(|e| Error::Manifest {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
+    write_atomic(&path, &text).map_err(|source| Error::Output { path, source })
+}
+
+/// Reads the record of (`pass`, `frame`): `None` if there is none. A file that is
+/// not a record is an error that says what was expected.
+pub fn read_record(out: &Path, pass: &str, frame: usize) -> Result<Option<FrameRecord>, Error> {
+    let path = record_path(out, pass, frame);
+    let bytes = match std::fs::read(&path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => return Err(Error::Output { path, source }),
+    };
+    match serde_json::from_slice::<FrameRecord>(&bytes) {
+        Ok(r) if r.pass == pass && r.frame == frame => Ok(Some(r)),
+        Ok(r) => Err(Error::Manifest {
+            path,
+            message: format!(
+                "the record is for pass `{}` frame {}, not pass `{pass}` frame {frame} as its name says; delete it to render that frame again",
+                r.pass, r.frame
+            ),
+        }),
+        Err(e) => Err(Error::Manifest {
+            path,
+            message: format!(
+                "not a volcast frame record (expected a JSON object with scene_hash, volcast_version, pass, frame, files, views, window, samples, seconds, shard): {e}; delete it to render that frame again, or render without --resume"
+            ),
+        }),
+    }
+}
+
+/// Whether `record` shows a complete (pass, frame) of the scene hashed `digest`:
+/// the same hash, and every file present with its recorded size.
+pub fn is_complete(out: &Path, record: &FrameRecord, digest: &str) -> bool {
+    record.scene_hash == digest
+        && !record.files.is_empty()
+        && record.files.iter().all(|f| {
+            std::fs::metadata(out.join(&f.name)).is_ok_and(|m| m.is_file() && m.len() == f.bytes)
+        })
+}
+
+/// SHA-256 of a file's bytes, with its size.
+pub fn file_record(path: &Path, bytes: &[u8]) -> FileRecord {
+    let mut h = Sha256::new();
+    h.update(bytes);
+    FileRecord {
+        name: path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        bytes: bytes.len() as u64,
+        sha256: h.finish_hex(),
+    }
+}
+
+/// The identity of a scene's images: see the module documentation.
+pub fn scene_digest(scene: &Scene, header: &VolumeHeader, width: usize, height: usize) -> String {
+    let mut h = Sha256::new();
+    h.update(b"volcast scene digest 1\0");
+    put_str(&mut h, env!("CARGO_PKG_VERSION"));
+    match scene.text.parse::<toml::Table>() {
+        Ok(mut table) => {
+            if let Some(toml::Value::Table(image)) = table.get_mut("image") {
+                image.remove("out");
+            }
+            table.remove("animation");
+            h.update(b"T");
+            put_toml(&mut h, &toml::Value::Table(table));
+        }
+        // (Only reachable for a scene built without its text.)
+        Err(_) => {
+            h.update(b"R");
+            put_str(&mut h, &scene.text);
+        }
+    }
+    put_str(&mut h, &header.source);
+    for n in header.sizes {
+        h.update(&(n as u64).to_le_bytes());
+    }
+    put_str(&mut h, header.scalar_type.nrrd_name());
+    for v in std::iter::once(header.geometry.origin).chain(header.geometry.axes) {
+        for x in v.to_array() {
+            h.update(&x.to_bits().to_le_bytes());
+        }
+    }
+    h.update(&(header.fields.len() as u64).to_le_bytes());
+    for (k, v) in &header.fields {
+        put_str(&mut h, k);
+        put_str(&mut h, v);
+    }
+    h.update(&(width as u64).to_le_bytes());
+    h.update(&(height as u64).to_le_bytes());
+    h.finish_hex()
+}
+
+fn put_str(h: &mut Sha256, s: &str) {
+    h.update(&(s.len() as u64).to_le_bytes());
+    h.update(s.as_bytes());
+}
+
+/// A canonical, type-tagged encoding of a TOML value (tables in key order; floats
+/// by their bits, so `1.0` and `1` differ, which at worst re-renders).
+fn put_toml(h: &mut Sha256, v: &toml::Value) {
+    match v {
+        toml::Value::String(s) => {
+            h.update(b"s");
+            put_str(h, s);
+        }
+        toml::Value::Integer(i) => {
+            h.update(b"i");
+            h.update(&i.to_le_bytes());
+        }
+        toml::Value::Float(f) => {
+            h.update(b"f");
+            h.update(&f.to_bits().to_le_bytes());
+        }
+        toml::Value::Boolean(b) => h.update(if *b { b"bT" } else { b"bF" }),
+        toml::Value::Datetime(d) => {
+            h.update(b"d");
+            put_str(h, &d.to_string());
+        }
+        toml::Value::Array(a) => {
+            h.update(b"a");
+            h.update(&(a.len() as u64).to_le_bytes());
+            for x in a {
+                put_toml(h, x);
+            }
+        }
+        toml::Value::Table(t) => {
+            h.update(b"t");
+            h.update(&(t.len() as u64).to_le_bytes());
+            let sorted: BTreeMap<&String, &toml::Value> = t.iter().collect();
+            for (k, x) in sorted {
+                put_str(h, k);
+                put_toml(h, x);
+            }
+        }
+    }
+}
+
+/// The resolved scene as JSON (the values the renderer used, defaults filled in).
+pub fn resolved_scene(scene: &Scene) -> Value {
+    let c = &scene.camera;
+    let stereo = scene.stereo.map(|s| {
+        let (method, separation) = match s.method {
+            StereoMethod::ToeIn => ("toe-in", Value::Null),
+            StereoMethod::Parallel(Separation::World(w)) => {
+                ("parallel", json!({ "world_units": w }))
+            }
+            StereoMethod::Parallel(Separation::Fraction(f)) => {
+                ("parallel", json!({ "fraction_of_distance": f }))
+            }
+        };
+        json!({
+            "method": method,
+            "angle_deg": s.angle_deg,
+            "separation": separation,
+            "layout": match s.layout {
+                Layout::Pair => "pair",
+                Layout::SideBySide => "side-by-side",
+                Layout::CrossEyed => "cross-eyed",
+                Layout::Anaglyph => "anaglyph",
+            },
+            "anaglyph": match s.anaglyph {
+                crate::scene::Anaglyph::RedCyan => "red-cyan",
+                crate::scene::Anaglyph::RedGreen => "red-green",
+            },
+            "anaglyph_colors": match s.anaglyph_colors {
+                AnaglyphColors::Color => "color",
+                AnaglyphColors::HalfColor => "half-color",
+                AnaglyphColors::Gray => "gray",
+            },
+            "gap": s.gap,
+        })
+    });
+    let passes: Vec<Value> = scene
+        .passes
+        .iter()
+        .map(|p| {
+            let mut o = json!({
+                "name": p.name,
+                "mode": p.mode.name(),
+                "step_voxels": p.step_voxels,
+                "interpolation": p.interpolation.name(),
+                "window": p.window,
+            });
+            let extra = match &p.mode {
+                Mode::Xray { output, mu, .. } => {
+                    json!({ "output": format!("{output:?}").to_lowercase(), "mu": mu })
+                }
+                Mode::Lmip { threshold, .. } | Mode::Depth { threshold, .. } => {
+                    json!({ "threshold": threshold })
+                }
+                Mode::Surface { iso, .. } => json!({ "iso": iso }),
+                Mode::Composite {
+                    transfer_name,
+                    reference_step_voxels,
+                    early_stop,
+                    ..
+                } => json!({
+                    "transfer": transfer_name,
+                    "reference_step_voxels": reference_step_voxels,
+                    "early_stop": early_stop,
+                }),
+                _ => json!({}),
+            };
+            if let (Value::Object(o), Value::Object(e)) = (&mut o, extra) {
+                o.extend(e);
+                if let Some(sh) = p.mode.shading() {
+                    o.insert(
+                        "shading".into(),
+                        json!({
+                            "model": format!("{:?}", sh.model).to_lowercase(),
+                            "material": sh.material_name,
+                            "gradient": sh.gradient.name(),
+                        }),
+                    );
+                }
+            }
+            o
+        })
+        .collect();
+    let light = match scene.light.kind {
+        LightKindSpec::Headlight => json!({ "kind": "headlight" }),
+        LightKindSpec::Directional(d) => {
+            json!({ "kind": "directional", "direction": d.to_array() })
+        }
+        LightKindSpec::Point(p) => json!({ "kind": "point", "position": p.to_array() }),
+    };
+    json!({
+        "volume": { "window": scene.volume.window },
+        "camera": {
+            "projection": match c.projection {
+                Projection::Perspective => "perspective",
+                Projection::Orthographic => "orthographic",
+            },
+            "fov_deg": c.fov_deg,
+            "azimuth_deg": c.azimuth_deg,
+            "elevation_deg": c.elevation_deg,
+            "up": c.up.to_array(),
+            "zoom": c.zoom,
+            "distance": c.distance,
+            "target": c.target.map(|t| t.to_array()),
+        },
+        "orbit": { "frames": scene.orbit.frames, "degrees": scene.orbit.degrees },
+        "stereo": stereo,
+        "image": {
+            "size": [scene.image.width, scene.image.height],
+            "background": scene.image.background,
+            "format": format!("{:?}", scene.image.format).to_lowercase(),
+        },
+        "passes": passes,
+        "light": {
+            "kind": light,
+            "color": scene.light.color.to_array(),
+            "intensity": scene.light.intensity,
+        },
+        "animation": scene.animation.as_ref().map(|a| json!({
+            "formats": a.formats.iter().map(|f| f.extension()).collect::<Vec<_>>(),
+            "fps": a.fps,
+            "loop": a.looping,
+        })),
+    })
+}
+
+/// The volume's description.
+pub fn volume_json(header: &VolumeHeader) -> Value {
+    json!({
+        "source": header.source,
+        "sizes": header.sizes,
+        "type": header.scalar_type.nrrd_name(),
+        "spacing": header.geometry.spacings(),
+        "origin": header.geometry.origin.to_array(),
+        "axes": header.geometry.axes.map(|a| a.to_array()),
+        "fields": header.fields.iter().map(|(k, v)| json!([k, v])).collect::<Vec<_>>(),
+    })
+}
+
+/// What the merged manifest found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ManifestStatus {
+    /// Where it was written.
+    pub path: PathBuf,
+    /// (pass, frame) images of the orbit with a valid record.
+    pub done: usize,
+    /// (pass, frame) images of the orbit in all.
+    pub total: usize,
+    /// Records that could not be read (named, with the reason).
+    pub unreadable: Vec<String>,
+}
+
+impl ManifestStatus {
+    /// Whether every (pass, frame) of the orbit is present.
+    pub fn complete(&self) -> bool {
+        self.done == self.total
+    }
+}
+
+/// Everything the merged manifest says besides the records.
+pub struct ManifestHead<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Its volume's header.
+    pub header: &'a VolumeHeader,
+    /// [`scene_digest`].
+    pub digest: &'a str,
+    /// Image size of one view.
+    pub size: (usize, usize),
+    /// Extra entries (animations, ffmpeg commands), merged into the top level.
+    pub extra: Value,
+}
+
+/// Merges the records of the current scene into `manifest.json` (see the module
+/// documentation) and reports how complete the sequence is.
+pub fn write_manifest(out: &Path, head: &ManifestHead) -> Result<ManifestStatus, Error> {
+    let path = out.join(MANIFEST);
+    let mut previous: Option<Vec<(String, usize)>> = None;
+    // Merge until the set of records did not change while writing (at most a few
+    // rounds, even with many shards finishing at once).
+    for _ in 0..8 {
+        let (records, status) = collect(out, head)?;
+        let keys: Vec<(String, usize)> =
+            records.iter().map(|r| (r.pass.clone(), r.frame)).collect();
+        if previous.as_ref() == Some(&keys) {
+            return Ok(status);
+        }
+        let scene = head.scene;
+        let mut windows = serde_json::Map::new();
+        for r in &records {
+            windows
+                .entry(r.pass.clone())
+                .or_insert_with(|| json!(r.window));
+        }
+        let seconds: f64 = records.iter().map(|r| r.seconds).sum();
+        let samples: u64 = records.iter().map(|r| r.samples).sum();
+        let mut doc = json!({
+            "format": MANIFEST_FORMAT,
+            "volcast_version": env!("CARGO_PKG_VERSION"),
+            "scene_hash": head.digest,
+            "complete": status.complete(),
+            "images_done": status.done,
+            "images_total": status.total,
+            "scene": {
+                "file": scene.path,
+                "text": scene.text,
+                "resolved": resolved_scene(scene),
+            },
+            "render_size": [head.size.0, head.size.1],
+            "volume": volume_json(head.header),
+            "windows": windows,
+            "totals": { "seconds": seconds, "samples": samples },
+            "frames": records,
+        });
+        if let (Value::Object(d), Value::Object(e)) = (&mut doc, &head.extra) {
+            for (k, v) in e {
+                d.insert(k.clone(), v.clone());
+            }
+        }
+        let mut text = serde_json::to_vec_pretty(&doc).map_err(|e| Error::Manifest {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+        text.push(b'\n');
+        write_atomic(&path, &text).map_err(|source| Error::Output {
+            path: path.clone(),
+            source,
+        })?;
+        previous = Some(keys);
+    }
+    Ok(collect(out, head)?.1)
+}
+
+/// The valid records of the current scene, in (pass, frame) order.
+fn collect(out: &Path, head: &ManifestHead) -> Result<(Vec<FrameRecord>, ManifestStatus), Error> {
+    let scene = head.scene;
+    let mut status = ManifestStatus {
+        path: out.join(MANIFEST),
+        total: scene.passes.len() * scene.orbit.frames,
+        ..Default::default()
+    };
+    let mut records = Vec::new();
+    for pass in &scene.passes {
+        for k in 0..scene.orbit.frames {
+            match read_record(out, &pass.name, k) {
+                Ok(Some(r)) if is_complete(out, &r, head.digest) => {
+                    status.done += 1;
+                    records.push(r);
+                }
+                Ok(_) => {}
+                Err(e) => status.unreadable.push(e.to_string()),
+            }
+        }
+    }
+    Ok((records, status))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(text: &str) -> Scene {
+        crate::scene::parse(text, Path::new("/tmp/s.toml")).unwrap()
+    }
+
+    fn digest(text: &str) -> String {
+        let s = scene(text);
+        let h = s.volume.source.header().unwrap();
+        scene_digest(&s, &h, 8, 8)
+    }
+
+    #[test]
+    fn the_digest_follows_what_changes_images() {
+        let base =
+            "[volume]\nsynthetic = \"ball\"\nsizes = [4, 4, 4]\n[[render]]\nmode = \"mip\"\n";
+        let d = digest(base);
+        assert_eq!(d.len(), 64);
+        // comments, spacing, key order, the output folder and the animation do not count
+        assert_eq!(
+            d,
+            digest(
+                "# a comment\n[volume]\nsizes = [4,4,4]\nsynthetic = \"ball\"\n\n[[render]]\nmode = \"mip\"  # mip\n[animation]\nfps = 12\n"
+            )
+        );
+        assert_eq!(
+            digest(&format!("{base}[image]\nout = \"a/b\"\n")),
+            digest(&format!("{base}[image]\nout = \"c\"\n"))
+        );
+        // anything else does
+        assert_ne!(d, digest(&base.replace("mip", "minip")));
+        assert_ne!(d, digest(&base.replace("[4, 4, 4]", "[4, 4, 5]")));
+        assert_ne!(d, digest(&format!("{base}[camera]\nzoom = 1.5\n")));
+        let s = scene(base);
+        let h = s.volume.source.header().unwrap();
+        assert_ne!(scene_digest(&s, &h, 8, 8), scene_digest(&s, &h, 8, 9));
+    }
+
+    #[test]
+    fn records_round_trip_and_bad_ones_are_named() {
+        let dir = std::env::temp_dir().join(format!("volcast-records-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join(RECORDS)).unwrap();
+        std::fs::write(dir.join("a_0003.png"), b"12345").unwrap();
+        let r = FrameRecord {
+            scene_hash: "abc".into(),
+            volcast_version: "0".into(),
+            pass: "a".into(),
+            frame: 3,
+            files: vec![file_record(&dir.join("a_0003.png"), b"12345")],
+            views: vec![],
+            window: Some([0.0, 1.0]),
+            samples: 7,
+            seconds: 0.5,
+            shard: None,
+        };
+        write_record(&dir, &r).unwrap();
+        let back = read_record(&dir, "a", 3).unwrap().unwrap();
+        assert_eq!(back, r);
+        assert!(is_complete(&dir, &back, "abc"));
+        assert!(!is_complete(&dir, &back, "abd"));
+        std::fs::write(dir.join("a_0003.png"), b"1234").unwrap();
+        assert!(!is_complete(&dir, &back, "abc"), "a file of another size");
+        assert_eq!(read_record(&dir, "a", 4).unwrap(), None);
+        std::fs::write(record_path(&dir, "a", 4), b"{\"scene_hash\": 1").unwrap();
+        let e = read_record(&dir, "a", 4).unwrap_err().to_string();
+        assert!(
+            e.contains("a_0004.json") && e.contains("expected a JSON object"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
