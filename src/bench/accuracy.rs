@@ -10,6 +10,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::truth::{answer, pixel_line, Answer, Quantity, AZIMUTH_DEG, ELEVATION_DEG};
 use super::{BenchError, NormalRow, Options, ReconstructionRow, Row};
@@ -343,6 +344,7 @@ pub fn sweep(
             .or_insert_with(|| {
                 let q = quantity(&case.truth);
                 (0..size * size)
+                    .into_par_iter()
                     .map(|p| {
                         let (i, j) = (p % size, p / size);
                         pixel_line(size, i, j).and_then(|line| answer(&fc.field, &q, &line))

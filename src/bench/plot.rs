@@ -64,6 +64,14 @@ fn panel_rows<'a>(r: &'a Report, mode: &str) -> (String, Vec<&'a Row>) {
     (title, rows)
 }
 
+/// The legend entry of a row: method, interpolation and gradient estimator.
+fn series_label(r: &Row) -> String {
+    match &r.gradient {
+        Some(g) => format!("{} {} {}", r.method, r.interpolation, g),
+        None => format!("{} {}", r.method, r.interpolation),
+    }
+}
+
 /// Draws the plot and returns the PNG bytes.
 pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
     static REGISTER: Once = Once::new();
@@ -93,6 +101,9 @@ pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
             "surface",
             "composite",
         ];
+        let mut labels: Vec<String> = report.rows.iter().map(series_label).collect();
+        labels.sort();
+        labels.dedup();
         for (area, mode) in root.split_evenly((2, 4)).iter().zip(modes) {
             let (title, rows) = panel_rows(report, mode);
             if rows.is_empty() {
@@ -101,10 +112,7 @@ pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
             // one series per (method, interpolation, gradient), ordered by step
             let mut series: BTreeMap<String, Vec<(f64, f64, f64)>> = BTreeMap::new();
             for r in &rows {
-                let label = match &r.gradient {
-                    Some(g) => format!("{} {} {}", r.method, r.interpolation, g),
-                    None => format!("{} {}", r.method, r.interpolation),
-                };
+                let label = series_label(r);
                 series.entry(label).or_default().push((
                     r.step_voxels.unwrap_or(0.0),
                     r.ms_per_frame.max(1e-6),
@@ -130,12 +138,16 @@ pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
                 .x_desc("ms per view")
                 .y_desc("RMS error")
                 .label_style(("sans-serif", 11))
+                .x_labels(5)
+                .y_labels(6)
                 .y_label_formatter(&|y| format!("{y:.0e}"))
                 .x_label_formatter(&|x| format!("{x:.2}"))
                 .draw()
                 .map_err(plot_err)?;
-            for (k, (label, mut pts)) in series.into_iter().enumerate() {
+            for (label, mut pts) in series {
                 pts.sort_by(|a, b| b.0.total_cmp(&a.0));
+                // the same colour for the same method in every panel
+                let k = labels.iter().position(|l| *l == label).unwrap_or(0);
                 let color = Palette99::pick(k).to_rgba();
                 let line: Vec<(f64, f64)> = pts.iter().map(|p| (p.1, p.2)).collect();
                 chart

@@ -35,7 +35,9 @@ pub const INTEGRAL_ENTRIES: usize = 4096;
 pub const COLOR_ENTRIES: usize = 256;
 /// Extinction per reference step given to fully opaque values.
 pub const MAX_EXTINCTION: f64 = 1e6;
-/// Sub-segments used to integrate one entry of the colour table.
+/// Most sub-segments used to integrate one entry of the colour table: one per
+/// 1/128 of the value range the segment spans (at least one), so each sub-segment
+/// sees at most 1/128 of the transfer function.
 const SUBSTEPS: usize = 64;
 
 /// The pre-integration tables of one 1D transfer function for one step.
@@ -90,7 +92,7 @@ impl Preintegrated {
     }
 
     /// The colour per unit opacity of a segment from `front` to `back` of `ratio`
-    /// reference steps: front-to-back compositing of [`SUBSTEPS`] sub-segments,
+    /// reference steps: front-to-back compositing of up to [`SUBSTEPS`] sub-segments,
     /// each with its exact opacity and the colour at its middle value.
     fn integrate_color(
         &self,
@@ -101,10 +103,13 @@ impl Preintegrated {
     ) -> [f32; 3] {
         let mut c = [0.0f64; 3];
         let mut transparency = 1.0f64;
-        let dv = (back - front) / SUBSTEPS as f64;
-        for s in 0..SUBSTEPS {
+        let substeps = ((back - front).abs() * 128.0)
+            .ceil()
+            .clamp(1.0, SUBSTEPS as f64) as usize;
+        let dv = (back - front) / substeps as f64;
+        for s in 0..substeps {
             let (v0, v1) = (front + s as f64 * dv, front + (s + 1) as f64 * dv);
-            let depth = self.mean_extinction(v0, v1) * ratio / SUBSTEPS as f64;
+            let depth = self.mean_extinction(v0, v1) * ratio / substeps as f64;
             let a = -(-depth).exp_m1();
             let col = rgba(0.5 * (v0 + v1));
             for ch in 0..3 {
