@@ -152,6 +152,21 @@ impl Plan {
             None => frames.clone().collect(),
         };
         let (width, height) = opts.size.unwrap_or((scene.image.width, scene.image.height));
+        if let Some(a) = &scene.animation {
+            let file_width = match scene.stereo {
+                Some(s) if matches!(s.layout, Layout::SideBySide | Layout::CrossEyed) => {
+                    2 * width + s.gap
+                }
+                _ => width,
+            };
+            if a.formats.contains(&crate::scene::AnimationFormat::Gif)
+                && file_width.max(height) > usize::from(u16::MAX)
+            {
+                return Err(fail(format!(
+                    "[animation] gif: GIF images are at most 65535 pixels wide and high, these frames are {file_width} x {height} (use formats = [\"apng\"] or a smaller size)"
+                )));
+            }
+        }
         let voxel_length = geometry
             .spacings()
             .into_iter()
