@@ -4,11 +4,14 @@
 //! that cannot be rendered is rejected before anything is loaded or written.
 //!
 //! Each pass computes only what it needs: a gradient volume only for composite
-//! passes that shade or use a 2D transfer function (surface passes take gradients
-//! on the fly at their one hit per ray), prefiltered coefficients only for `cubic`
-//! interpolation, a transfer-function table only for composite passes, and a
-//! preview pass for the grey window only for intensity modes written as PNG without
-//! a fixed `window`.
+//! passes that shade or use a 2D transfer function with a grid estimator (surface
+//! passes take gradients on the fly at their one hit per ray, and `gradient =
+//! "analytic"` differentiates the spline on the fly), prefiltered coefficients only
+//! for `cubic` interpolation, a transfer-function table only for composite passes, a
+//! pre-integration table only for `preintegrated` composite passes (built for the
+//! pass's step), and a preview pass for the grey window only for intensity modes
+//! written as PNG without a fixed `window`. Exact passes (`integration = "exact"`)
+//! precompute nothing: they walk the cells of the voxels themselves.
 
 use std::fmt::Write as _;
 use std::ops::Range;
