@@ -644,3 +644,40 @@ fn bench_accuracy_quick_writes_its_report() {
         serde_json::from_str(&std::fs::read_to_string(out.join("accuracy.json")).unwrap()).unwrap();
     assert_eq!(json["rows"].as_array().unwrap().len(), rows.len());
 }
+
+#[test]
+fn early_termination_bound_holds_for_preintegrated_and_jittered_passes() {
+    // The budget of docs/accuracy.md: once the opacity reaches e the rest of the ray
+    // adds at most 1 - e to a premultiplied channel or to the opacity, whatever the
+    // method (tests/analytic.rs checks the plain sampled pass).
+    let base = "[volume]\nsynthetic = \"gaussian\"\nsigma = 0.4\nsizes = [33, 33, 33]\n\
+        [camera]\nprojection = \"orthographic\"\n[image]\nsize = [15, 15]\nformat = \"nrrd\"\n\
+        [transfer.t]\ncolor = [[0.0, [0.0, 0.0, 1.0]], [1.0, [1.0, 0.0, 0.0]]]\nalpha = [[0.0, 0.0], [1.0, 0.9]]\n";
+    for method in ["preintegrated = true\n", "jitter = true\n"] {
+        let full = render(&format!(
+            "{base}[[render]]\nmode = \"composite\"\ntransfer = \"t\"\nearly_stop = 1.0\n{method}"
+        ));
+        for e in [0.9, 0.99] {
+            let cut = render(&format!(
+                "{base}[[render]]\nmode = \"composite\"\ntransfer = \"t\"\nearly_stop = {e}\n{method}"
+            ));
+            let mut stopped = 0;
+            for (a, b) in full[0].film.data.chunks(4).zip(cut[0].film.data.chunks(4)) {
+                // f32 output: 1e-6 of slack
+                let budget = (1.0 - e) as f32 + 1e-6;
+                for ch in 0..3 {
+                    assert!(
+                        (a[ch] * a[3] - b[ch] * b[3]).abs() <= budget,
+                        "{method} e {e}"
+                    );
+                }
+                assert!((a[3] - b[3]).abs() <= budget, "{method} e {e}");
+                stopped += usize::from(a[3] != b[3]);
+            }
+            assert!(
+                stopped > 0,
+                "{method} e {e}: early termination happened somewhere"
+            );
+        }
+    }
+}

@@ -343,6 +343,87 @@ impl Report {
                 let _ = writeln!(s, " {cell} |");
             }
         }
+        // 1b. interpolation filters, sampled, at a mid step
+        let mid = if steps.contains(&0.5) {
+            0.5
+        } else {
+            steps.last().copied().unwrap_or(1.0)
+        };
+        let interps = ["nearest", "trilinear", "bspline", "cubic"];
+        let _ = writeln!(
+            s,
+            "\n**Reconstruction filters** at step {mid}: RMS error (ms per view).\n"
+        );
+        let _ = writeln!(
+            s,
+            "| field | mode | {} |\n| --- | --- |{}",
+            interps.join(" | "),
+            " --- |".repeat(interps.len())
+        );
+        for f in &fields {
+            for mode in ["xray", "mip", "minip", "average", "lmip", "depth"] {
+                let cells: Vec<String> = interps
+                    .iter()
+                    .map(|i| {
+                        self.find(f, mode, "sampled", i, Some(mid))
+                            .map_or("-".into(), |r| {
+                                format!("{} ({})", sig(r.rms_error), sig(r.ms_per_frame))
+                            })
+                    })
+                    .collect();
+                if cells.iter().all(|c| c == "-") {
+                    continue;
+                }
+                let _ = writeln!(s, "| {f} | {mode} | {} |", cells.join(" | "));
+            }
+        }
+        // 1c. surfaces by gradient estimator
+        let mut combos: Vec<(String, String)> = self
+            .rows
+            .iter()
+            .filter(|r| r.mode == "surface" && r.method == "sampled")
+            .map(|r| {
+                (
+                    r.interpolation.clone(),
+                    r.gradient.clone().unwrap_or_default(),
+                )
+            })
+            .collect();
+        combos.dedup();
+        combos.sort();
+        combos.dedup();
+        let _ = writeln!(s, "\n**Shaded iso-surfaces** (`n . v` of a matte surface) by interpolation and gradient estimator at step {mid}: RMS error.\n");
+        let _ = writeln!(
+            s,
+            "| field | {} |\n| --- |{}",
+            combos
+                .iter()
+                .map(|(i, g)| format!("{i} + {g}"))
+                .collect::<Vec<_>>()
+                .join(" | "),
+            " --- |".repeat(combos.len())
+        );
+        for f in &fields {
+            let cells: Vec<String> = combos
+                .iter()
+                .map(|(i, g)| {
+                    self.rows
+                        .iter()
+                        .find(|r| {
+                            r.field == *f
+                                && r.mode == "surface"
+                                && r.method == "sampled"
+                                && r.interpolation == *i
+                                && r.gradient.as_deref() == Some(g.as_str())
+                                && r.step_voxels == Some(mid)
+                        })
+                        .map_or("-".into(), |r| sig(r.rms_error))
+                })
+                .collect();
+            if cells.iter().any(|c| c != "-") {
+                let _ = writeln!(s, "| {f} | {} |", cells.join(" | "));
+            }
+        }
         // 2. composite: sampled, jitter, pre-integrated
         let _ = writeln!(s, "\n**Compositing** (transfer functions `ramp` and the narrow peak `narrow`): RMS error of premultiplied colour and opacity, sampled / jittered / pre-integrated.\n");
         let mut head = String::from("| field | transfer |");

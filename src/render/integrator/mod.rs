@@ -19,7 +19,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-pub use exact::{CompensatedSum, Exact, Segment};
+pub use exact::Exact;
 
 use crate::sample::Field;
 use crate::scene::XrayOutput;
