@@ -446,41 +446,67 @@ fn marschner_lobb_reconstruction_error_is_near_the_anchor() {
             state ^= state << 17;
             (state >> 11) as f64 / (1u64 << 53) as f64
         };
-        let (mut max, mut sq) = (0.0f64, 0.0f64);
-        let count = 100_000;
-        for _ in 0..count {
-            let w = DVec3::new(next(), next(), next()) * 2.0 - 1.0;
-            let e = (s.value((w + 1.0) * 20.0) as f64 - ml(w)).abs();
-            max = max.max(e);
-            sq += e * e;
+        // over the whole cube, and over [-0.9, 0.9]^3, away from the mirror boundary
+        // conditions that the prefilter and the spline assume at the faces
+        for extent in [1.0, 0.9] {
+            let (mut max, mut sq) = (0.0f64, 0.0f64);
+            let count = 100_000;
+            for _ in 0..count {
+                let w = (DVec3::new(next(), next(), next()) * 2.0 - 1.0) * extent;
+                let e = (s.value((w + 1.0) * 20.0) as f64 - ml(w)).abs();
+                max = max.max(e);
+                sq += e * e;
+            }
+            let rms = (sq / count as f64).sqrt();
+            eprintln!(
+                "marschner-lobb 41^3 {} in [-{extent}, {extent}]^3: max {max:.4}, rms {rms:.4}",
+                interp.name()
+            );
+            stats.push((max, rms));
         }
-        let rms = (sq / count as f64).sqrt();
-        eprintln!(
-            "marschner-lobb 41^3 {}: max {max:.4}, rms {rms:.4}",
-            interp.name()
-        );
-        stats.push((max, rms));
     }
-    let [(tri_max, tri_rms), (cub_max, cub_rms), (bsp_max, bsp_rms)] = stats[..] else {
+    let [(tri_max, tri_rms), (tri_max_in, tri_rms_in), (cub_max, cub_rms), (cub_max_in, cub_rms_in), (_, bsp_rms), _] =
+        stats[..]
+    else {
         unreachable!()
     };
     // The anchor (an independent implementation): trilinear 0.087 / 0.034,
     // prefiltered cubic 0.066 / 0.016. Sampling 1e5 points finds a max within a few
-    // per cent of the true one; +-25% on the max and +-20% on the RMS is the
-    // "neighbourhood".
-    assert!((0.065..=0.11).contains(&tri_max), "trilinear max {tri_max}");
-    assert!(
-        (0.027..=0.041).contains(&tri_rms),
-        "trilinear rms {tri_rms}"
-    );
-    assert!((0.05..=0.083).contains(&cub_max), "cubic max {cub_max}");
-    assert!((0.0128..=0.0192).contains(&cub_rms), "cubic rms {cub_rms}");
+    // per cent of the true one; +-15% on the max and the RMS is the "neighbourhood"
+    // in the interior. Over the whole cube the cubic's boundary conditions add error
+    // near the faces (measured 0.080 / 0.019): +-25% there.
+    for (got, anchor, what) in [
+        (tri_max_in, 0.087, "trilinear max, interior"),
+        (tri_rms_in, 0.034, "trilinear rms, interior"),
+        (cub_max_in, 0.066, "cubic max, interior"),
+        (cub_rms_in, 0.016, "cubic rms, interior"),
+    ] {
+        assert!(
+            (got / anchor - 1.0).abs() < 0.15,
+            "{what}: {got} vs {anchor}"
+        );
+    }
+    for (got, anchor, what) in [
+        (tri_max, 0.087, "trilinear max"),
+        (tri_rms, 0.034, "trilinear rms"),
+        (cub_max, 0.066, "cubic max"),
+        (cub_rms, 0.016, "cubic rms"),
+    ] {
+        assert!(
+            (got / anchor - 1.0).abs() < 0.25,
+            "{what}: {got} vs {anchor}"
+        );
+    }
     assert!(
         cub_max < tri_max && cub_rms < tri_rms,
         "cubic beats trilinear"
     );
+    assert!(
+        cub_max_in < tri_max_in && cub_rms_in < tri_rms_in,
+        "cubic beats trilinear in the interior too"
+    );
     // the unfiltered B-spline smooths: worse than the interpolating one
-    assert!(bsp_rms > cub_rms, "bspline rms {bsp_rms} max {bsp_max}");
+    assert!(bsp_rms > cub_rms, "bspline rms {bsp_rms}");
 }
 
 #[test]
