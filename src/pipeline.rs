@@ -100,6 +100,12 @@ pub fn render(
         skipped: done.len(),
         ..Summary::default()
     };
+    if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
+        summary.notes.push(format!(
+            "shard {shard} has no frames of {}..{}: nothing to render",
+            plan.frames.start, plan.frames.end
+        ));
+    }
     if !jobs.is_empty() {
         let volume = scene.volume.source.load(limits)?;
         let norm = value_window(scene, &volume)?;

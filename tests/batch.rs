@@ -430,6 +430,18 @@ fn animations_hold_every_frame() {
         assert_eq!(n, 7, "{stem}");
         assert_eq!(dec.repeat(), gif::Repeat::Infinite);
     }
+    // new [animation] settings rebuild the animations without rendering a frame
+    let slower = SCENE.replace("fps = 10", "fps = 5");
+    std::fs::write(dir.join("s.toml"), slower).unwrap();
+    let err = render(dir, "a", &["--resume"]);
+    assert!(
+        err.contains("volcast: 0 files") && err.contains("mip_left.gif"),
+        "{err}"
+    );
+    let mut dec = gif::DecodeOptions::new()
+        .read_info(std::fs::File::open(out.join("mip_left.gif")).unwrap())
+        .unwrap();
+    assert_eq!(dec.read_next_frame().unwrap().unwrap().delay, 20);
     // playing once, anaglyph: one animation per pass, no loop
     let once = SCENE
         .replace("layout = \"pair\"", "layout = \"anaglyph\"")

@@ -101,9 +101,10 @@ pub fn describe_outputs(scene: &Scene, out: &Path) -> String {
             })
             .collect();
         let gif = if a.formats.contains(&AnimationFormat::Gif) {
+            let fps = 100.0 / animation::gif_delay(a.fps) as f64;
             format!(
-                ", GIF at {} fps ({} hundredths per frame)",
-                100.0 / animation::gif_delay(a.fps) as f64,
+                ", GIF at {} fps ({} hundredths of a second per frame)",
+                (fps * 1000.0).round() / 1000.0,
                 animation::gif_delay(a.fps)
             )
         } else {
