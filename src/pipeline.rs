@@ -74,6 +74,8 @@ pub struct Summary {
     pub manifest: Option<ManifestStatus>,
     /// Animations written by this run.
     pub animations: Vec<animation::Written>,
+    /// The ffmpeg command that makes an MP4 of each image sequence (none for NRRD).
+    pub ffmpeg: Vec<String>,
     /// Things worth telling the user (unreadable records, removed temporaries).
     pub notes: Vec<String>,
 }
@@ -247,7 +249,7 @@ fn finish(
         header,
         digest,
         size: (plan.width, plan.height),
-        extra: json!({ "ffmpeg": ffmpeg }),
+        extra: json!({ "ffmpeg": &ffmpeg }),
     };
     let status = manifest::write_manifest(out, &head)?;
     summary.notes.extend(
@@ -289,6 +291,7 @@ fn finish(
         manifest::write_manifest(out, &head)?;
     }
     summary.manifest = Some(status);
+    summary.ffmpeg = ffmpeg;
     Ok(())
 }
 

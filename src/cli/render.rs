@@ -139,6 +139,14 @@ fn report(summary: &pipeline::Summary) {
                 m.path.display(),
                 m.total
             );
+            if let Some(cmd) = summary.ffmpeg.first() {
+                let more = if summary.ffmpeg.len() > 1 {
+                    " (the other sequences' commands are in the manifest)"
+                } else {
+                    ""
+                };
+                eprintln!("volcast: to make a video: {cmd}{more}");
+            }
         } else {
             eprintln!(
                 "volcast: manifest {}: {} of {} images done; the rest come from other shards or runs (animations are assembled once every frame exists: rerun with --resume to finish)",
