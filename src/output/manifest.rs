@@ -25,7 +25,6 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
-use super::sha256::Sha256;
 use super::write::write_atomic;
 use crate::error::Error;
 use crate::render::View;
@@ -34,6 +33,7 @@ use crate::scene::{
 };
 use crate::views::ViewKey;
 use crate::volume::VolumeHeader;
+use sha2::{Digest, Sha256};
 
 /// File name of the merged manifest.
 pub const MANIFEST: &str = "manifest.json";
@@ -217,7 +217,7 @@ pub fn file_record(path: &Path, bytes: &[u8]) -> FileRecord {
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default(),
         bytes: bytes.len() as u64,
-        sha256: h.finish_hex(),
+        sha256: hex(&h.finalize()),
     }
 }
 
@@ -258,7 +258,7 @@ pub fn scene_digest(scene: &Scene, header: &VolumeHeader, width: usize, height: 
     }
     h.update(&(width as u64).to_le_bytes());
     h.update(&(height as u64).to_le_bytes());
-    h.finish_hex()
+    hex(&h.finalize())
 }
 
 fn put_str(h: &mut Sha256, s: &str) {
@@ -635,4 +635,15 @@ mod tests {
         );
         std::fs::remove_dir_all(&dir).unwrap();
     }
+}
+
+/// Bytes as lowercase hex digits.
+fn hex(bytes: &[u8]) -> String {
+    use std::fmt::Write as _;
+    bytes
+        .iter()
+        .fold(String::with_capacity(2 * bytes.len()), |mut s, b| {
+            let _ = write!(s, "{b:02x}");
+            s
+        })
 }

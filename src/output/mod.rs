@@ -7,7 +7,6 @@ pub mod animation;
 pub mod display;
 pub mod encode;
 pub mod manifest;
-pub mod sha256;
 pub mod stereo;
 pub mod write;
 
