@@ -243,26 +243,26 @@ pub fn scene_digest(scene: &Scene, header: &VolumeHeader, width: usize, height: 
     }
     put_str(&mut h, &header.source);
     for n in header.sizes {
-        h.update(&(n as u64).to_le_bytes());
+        h.update((n as u64).to_le_bytes());
     }
     put_str(&mut h, header.scalar_type.nrrd_name());
     for v in std::iter::once(header.geometry.origin).chain(header.geometry.axes) {
         for x in v.to_array() {
-            h.update(&x.to_bits().to_le_bytes());
+            h.update(x.to_bits().to_le_bytes());
         }
     }
-    h.update(&(header.fields.len() as u64).to_le_bytes());
+    h.update((header.fields.len() as u64).to_le_bytes());
     for (k, v) in &header.fields {
         put_str(&mut h, k);
         put_str(&mut h, v);
     }
-    h.update(&(width as u64).to_le_bytes());
-    h.update(&(height as u64).to_le_bytes());
+    h.update((width as u64).to_le_bytes());
+    h.update((height as u64).to_le_bytes());
     hex(&h.finalize())
 }
 
 fn put_str(h: &mut Sha256, s: &str) {
-    h.update(&(s.len() as u64).to_le_bytes());
+    h.update((s.len() as u64).to_le_bytes());
     h.update(s.as_bytes());
 }
 
@@ -276,11 +276,11 @@ fn put_toml(h: &mut Sha256, v: &toml::Value) {
         }
         toml::Value::Integer(i) => {
             h.update(b"i");
-            h.update(&i.to_le_bytes());
+            h.update(i.to_le_bytes());
         }
         toml::Value::Float(f) => {
             h.update(b"f");
-            h.update(&f.to_bits().to_le_bytes());
+            h.update(f.to_bits().to_le_bytes());
         }
         toml::Value::Boolean(b) => h.update(if *b { b"bT" } else { b"bF" }),
         toml::Value::Datetime(d) => {
@@ -289,14 +289,14 @@ fn put_toml(h: &mut Sha256, v: &toml::Value) {
         }
         toml::Value::Array(a) => {
             h.update(b"a");
-            h.update(&(a.len() as u64).to_le_bytes());
+            h.update((a.len() as u64).to_le_bytes());
             for x in a {
                 put_toml(h, x);
             }
         }
         toml::Value::Table(t) => {
             h.update(b"t");
-            h.update(&(t.len() as u64).to_le_bytes());
+            h.update((t.len() as u64).to_le_bytes());
             let sorted: BTreeMap<&String, &toml::Value> = t.iter().collect();
             for (k, x) in sorted {
                 put_str(h, k);
