@@ -33,8 +33,7 @@ pub fn trace<F: Field>(march: &March, field: &F, ray: &PixelRay, p: Params) -> (
         return trace_preintegrated(march, field, ray, &p, pre);
     }
     let n = march.len();
-    let mut color = DVec3::ZERO;
-    let mut alpha = 0.0f64;
+    let mut acc = FrontToBack::new(p.early_stop);
     let mut samples = 0;
     let to_eye = (-ray.dir).as_vec3();
     for i in 1..n {
@@ -61,32 +60,12 @@ pub fn trace<F: Field>(march: &March, field: &F, ray: &PixelRay, p: Params) -> (
             continue;
         }
         let base = Vec3::new(rgba[0], rgba[1], rgba[2]);
-        let c = match p.shader {
-            None => base,
-            Some(shader) => {
-                let g = grad.unwrap_or_else(|| field.gradient(pos));
-                let normal = normal_from_gradient(g, ray.dir);
-                shader.shade(
-                    ray.world(t).as_vec3(),
-                    normal.map(|n| n.as_vec3()),
-                    to_eye,
-                    base,
-                )
-            }
-        };
-        let w = (1.0 - alpha) * f64::from(a);
-        color += c.as_dvec3() * w;
-        alpha += w;
-        if alpha >= f64::from(p.early_stop) {
+        let c = shade(p.shader, field, ray, t, grad, base, to_eye);
+        if acc.add(c, a) {
             break;
         }
     }
-    if alpha > 0.0 {
-        let c = (color / alpha).as_vec3();
-        ([c.x, c.y, c.z, alpha as f32], samples)
-    } else {
-        ([0.0; 4], samples)
-    }
+    (acc.finish(), samples)
 }
 
 /// Front-to-back compositing of pre-integrated segments between consecutive samples.
@@ -98,8 +77,7 @@ fn trace_preintegrated<F: Field>(
     pre: &Preintegrated,
 ) -> ([f32; 4], u64) {
     let n = march.len();
-    let mut color = DVec3::ZERO;
-    let mut alpha = 0.0f64;
+    let mut acc = FrontToBack::new(p.early_stop);
     let to_eye = (-ray.dir).as_vec3();
     let mut t_prev = march.t(0);
     let mut v_prev = field.value(ray.index.at(t_prev));
@@ -120,29 +98,69 @@ fn trace_preintegrated<F: Field>(
             continue;
         }
         let base = Vec3::from_array(rgb);
-        let c = match p.shader {
-            None => base,
-            Some(shader) => {
-                let normal = normal_from_gradient(field.gradient(ray.index.at(t_mid)), ray.dir);
-                shader.shade(
-                    ray.world(t_mid).as_vec3(),
-                    normal.map(|n| n.as_vec3()),
-                    to_eye,
-                    base,
-                )
-            }
-        };
-        let w = (1.0 - alpha) * f64::from(a);
-        color += c.as_dvec3() * w;
-        alpha += w;
-        if alpha >= f64::from(p.early_stop) {
+        let c = shade(p.shader, field, ray, t_mid, None, base, to_eye);
+        if acc.add(c, a) {
             break;
         }
     }
-    if alpha > 0.0 {
-        let c = (color / alpha).as_vec3();
-        ([c.x, c.y, c.z, alpha as f32], samples)
-    } else {
-        ([0.0; 4], samples)
+    (acc.finish(), samples)
+}
+
+/// The colour of a sample: the transfer function's colour `base`, shaded where the
+/// pass shades (with the gradient already computed for a 2D transfer function, if any).
+fn shade<F: Field>(
+    shader: Option<&Shader>,
+    field: &F,
+    ray: &PixelRay,
+    t: f64,
+    gradient: Option<DVec3>,
+    base: Vec3,
+    to_eye: Vec3,
+) -> Vec3 {
+    let Some(shader) = shader else { return base };
+    let g = gradient.unwrap_or_else(|| field.gradient(ray.index.at(t)));
+    let normal = normal_from_gradient(g, ray.dir);
+    shader.shade(
+        ray.world(t).as_vec3(),
+        normal.map(|n| n.as_vec3()),
+        to_eye,
+        base,
+    )
+}
+
+/// Front-to-back accumulation (REFERENCE.md: `C' += (1 - A') C_i`, `A' += (1 - A') A_i`)
+/// in f64, with early ray termination.
+struct FrontToBack {
+    color: DVec3,
+    alpha: f64,
+    early_stop: f64,
+}
+
+impl FrontToBack {
+    fn new(early_stop: f32) -> FrontToBack {
+        FrontToBack {
+            color: DVec3::ZERO,
+            alpha: 0.0,
+            early_stop: f64::from(early_stop),
+        }
+    }
+
+    /// Adds a sample of colour `c` and opacity `a`; true once the ray may stop.
+    #[inline]
+    fn add(&mut self, c: Vec3, a: f32) -> bool {
+        let w = (1.0 - self.alpha) * f64::from(a);
+        self.color += c.as_dvec3() * w;
+        self.alpha += w;
+        self.alpha >= self.early_stop
+    }
+
+    /// RGBA, not premultiplied.
+    fn finish(self) -> [f32; 4] {
+        if self.alpha > 0.0 {
+            let c = (self.color / self.alpha).as_vec3();
+            [c.x, c.y, c.z, self.alpha as f32]
+        } else {
+            [0.0; 4]
+        }
     }
 }

@@ -5,6 +5,7 @@
 
 use glam::{DVec3, Vec3};
 
+use super::root::illinois;
 use super::{March, PixelRay};
 use crate::sample::Field;
 use crate::shade::Shader;
@@ -30,48 +31,18 @@ fn first_crossing(march: &March, value: &impl Fn(f64) -> f32, level: f32) -> (Op
     (None, n as u64)
 }
 
-/// Illinois false position on `f(t) - level` over `[a, b]` with `f(a) < level <= f(b)`.
-/// Returns the crossing and the number of extra samples taken.
+/// Refines the crossing of `level` between samples `a` and `b` (`f(a) < level <=
+/// f(b)`) to 1e-7 of their distance. Returns it and the extra samples taken.
 fn refine(value: &impl Fn(f64) -> f32, level: f32, a: (f64, f32), b: (f64, f32)) -> (f64, u64) {
-    let (mut ta, mut ga) = (a.0, (a.1 - level) as f64);
-    let (mut tb, mut gb) = (b.0, (b.1 - level) as f64);
-    let tol = (tb - ta) * 1e-7;
-    let mut side = 0i8;
-    let mut evals = 0;
-    while tb - ta > tol && evals < 60 {
-        let t = if gb - ga > 0.0 {
-            (ta - ga * (tb - ta) / (gb - ga)).clamp(ta, tb)
-        } else {
-            0.5 * (ta + tb)
-        };
-        // keep the interval shrinking even where the secant lands on an end
-        let t = if t <= ta || t >= tb {
-            0.5 * (ta + tb)
-        } else {
-            t
-        };
-        let g = (value(t) - level) as f64;
-        evals += 1;
-        if g >= 0.0 {
-            tb = t;
-            gb = g;
-            if side == 1 {
-                ga *= 0.5;
-            }
-            side = 1;
-        } else {
-            ta = t;
-            ga = g;
-            if side == -1 {
-                gb *= 0.5;
-            }
-            side = -1;
-        }
-        if g == 0.0 {
-            break;
-        }
-    }
-    (tb, evals)
+    let g = |t: f64| (value(t) - level) as f64;
+    let tol = (b.0 - a.0) * 1e-7;
+    illinois(
+        g,
+        (a.0, (a.1 - level) as f64),
+        (b.0, (b.1 - level) as f64),
+        |ta, tb| tb - ta <= tol,
+        60,
+    )
 }
 
 /// Depth coding: distance from the depth reference to the first crossing (NaN if none).

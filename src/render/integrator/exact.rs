@@ -28,6 +28,7 @@
 use std::ops::ControlFlow;
 
 use super::crossing::shade_hit;
+use super::root::illinois;
 use super::xray::finish;
 use super::PixelRay;
 use crate::sample::Field;
@@ -204,41 +205,18 @@ impl Segment {
     }
 
     /// The crossing of `level` in `[a, b]`, where the polynomial is monotone with
-    /// `f(a) < level <= f(b)`: Illinois false position with bisection fallback, to
-    /// round-off. Returns a point where `f >= level` (the upper bracket).
-    fn refine(&self, level: f64, (mut a, fa): (f64, f64), (mut b, fb): (f64, f64)) -> f64 {
-        let (mut ga, mut gb) = (fa - level, fb - level);
-        let mut side = 0i8;
-        for _ in 0..200 {
-            let width = b - a;
-            if width <= 4.0 * f64::EPSILON * b.abs().max(a.abs()) || width <= 0.0 {
-                break;
-            }
-            let mut s = a - ga * width / (gb - ga);
-            if !(s > a && s < b) {
-                s = 0.5 * (a + b);
-            }
-            let g = self.eval(s) - level;
-            if g >= 0.0 {
-                b = s;
-                gb = g;
-                if side == 1 {
-                    ga *= 0.5;
-                }
-                side = 1;
-            } else {
-                a = s;
-                ga = g;
-                if side == -1 {
-                    gb *= 0.5;
-                }
-                side = -1;
-            }
-            if g == 0.0 {
-                break;
-            }
-        }
-        b
+    /// `f(a) < level <= f(b)`, to round-off. Returns a point where `f >= level`.
+    fn refine(&self, level: f64, (a, fa): (f64, f64), (b, fb): (f64, f64)) -> f64 {
+        let round_off =
+            |a: f64, b: f64| b - a <= 4.0 * f64::EPSILON * b.abs().max(a.abs()) || b <= a;
+        illinois(
+            |s| self.eval(s) - level,
+            (a, fa - level),
+            (b, fb - level),
+            round_off,
+            200,
+        )
+        .0
     }
 }
 

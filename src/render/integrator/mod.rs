@@ -13,6 +13,7 @@ mod composite;
 mod crossing;
 mod exact;
 mod projection;
+mod root;
 mod xray;
 
 use std::sync::Arc;

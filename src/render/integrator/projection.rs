@@ -1,5 +1,6 @@
 //! MIP, MinIP, average and local MIP (REFERENCE.md "Render modes").
 
+use super::xray::trapezoid;
 use super::March;
 
 /// The extremum (`pick` = max or min) of the samples.
@@ -21,20 +22,13 @@ pub fn extremum(
 pub fn average(march: &March, value: impl Fn(f64) -> f32) -> ([f32; 4], u64) {
     let n = march.len();
     let (t0, t1) = (march.t(0), march.t(n - 1));
-    let mut f_prev = value(t0) as f64;
-    if n == 1 || t1 <= t0 {
-        return ([f_prev as f32, 0.0, 0.0, 0.0], n as u64);
-    }
-    let mut sum = 0.0f64;
-    let mut t_prev = t0;
-    for i in 1..n {
-        let t = march.t(i);
-        let f = value(t) as f64;
-        sum += (t - t_prev) * (f_prev + f) * 0.5;
-        t_prev = t;
-        f_prev = f;
-    }
-    ([(sum / (t1 - t0)) as f32, 0.0, 0.0, 0.0], n as u64)
+    let (integral, first) = trapezoid(march, value);
+    let mean = if n == 1 || t1 <= t0 {
+        first
+    } else {
+        integral / (t1 - t0)
+    };
+    ([mean as f32, 0.0, 0.0, 0.0], n as u64)
 }
 
 /// The first local maximum among samples at or above `threshold`: the last sample

@@ -11,18 +11,28 @@ pub fn trace(
     output: XrayOutput,
     mu: f64,
 ) -> ([f32; 4], u64) {
-    let n = march.len();
+    let (integral, _) = trapezoid(march, value);
+    (
+        [finish(integral, output, mu), 0.0, 0.0, 0.0],
+        march.len() as u64,
+    )
+}
+
+/// The trapezoid-rule integral of `value` over the march, accumulated in f64, and
+/// the value at its first sample.
+pub fn trapezoid(march: &March, value: impl Fn(f64) -> f32) -> (f64, f64) {
     let mut sum = 0.0f64;
     let mut t_prev = march.t(0);
-    let mut f_prev = value(t_prev) as f64;
-    for i in 1..n {
+    let first = value(t_prev) as f64;
+    let mut f_prev = first;
+    for i in 1..march.len() {
         let t = march.t(i);
         let f = value(t) as f64;
         sum += (t - t_prev) * (f_prev + f) * 0.5;
         t_prev = t;
         f_prev = f;
     }
-    ([finish(sum, output, mu), 0.0, 0.0, 0.0], n as u64)
+    (sum, first)
 }
 
 /// The stored quantity for a line integral `integral` of the normalised value.
