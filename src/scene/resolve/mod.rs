@@ -1,0 +1,204 @@
+//! From what the user wrote ([`super::schema`]) to what it means ([`super::Scene`]):
+//! defaults, ranges, names, cross-references and mode-specific keys. Every problem
+//! is collected with its place in the file; the scene is returned only if there
+//! are none. One submodule per part of the scene: [`volume`], [`view`] (camera,
+//! orbit, image, stereo, animation, light), [`appearance`] (materials and transfer
+//! functions) and [`passes`].
+
+mod appearance;
+mod passes;
+mod view;
+mod volume;
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::{DVec3, Vec3};
+use toml::Spanned;
+
+use super::diag::{quoted_list, suggest, with_suggestion, Diagnostic, SceneError};
+use super::schema::*;
+use super::*;
+use crate::sample::{GradientMethod, Interpolation};
+use crate::shade::{Material, Model};
+use crate::transfer::{self, Transfer1D, Transfer2D, Widget, WidgetShape};
+use crate::volume::raw::RawSpec;
+use crate::volume::synthetic::Field;
+use crate::volume::{ScalarType, Synthetic, VolumeSource};
+
+struct Resolver<'a> {
+    diags: Vec<Diagnostic>,
+    warnings: Vec<String>,
+    base_dir: &'a Path,
+}
+
+pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
+    let fail = |diags: Vec<Diagnostic>| SceneError {
+        path: path.to_path_buf(),
+        text: text.to_string(),
+        diagnostics: diags,
+    };
+    let file: SceneFile = match toml::from_str(text) {
+        Ok(f) => f,
+        Err(e) => {
+            return Err(fail(vec![Diagnostic {
+                span: e.span(),
+                message: with_suggestion(e.message()),
+            }]))
+        }
+    };
+    let base_dir = path.parent().unwrap_or(Path::new("."));
+    let mut r = Resolver {
+        diags: Vec::new(),
+        warnings: Vec::new(),
+        base_dir,
+    };
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    let volume = r.volume(&file.volume);
+    let camera = r.camera(file.camera.as_ref());
+    let orbit = r.orbit(file.orbit.as_ref());
+    let image = r.image(file.image.as_ref(), &name);
+    let stereo = file
+        .stereo
+        .as_ref()
+        .map(|s| r.stereo(s, image.format, camera.projection));
+    let animation = file
+        .animation
+        .as_ref()
+        .map(|a| r.animation(a, image.format));
+    let light = r.light(file.light.as_ref());
+    let materials = r.materials(&file.material);
+    let transfers = r.transfers(&file.transfer);
+    let passes = r.passes(file.render.as_deref(), &materials, &transfers);
+    if !r.diags.is_empty() {
+        let mut d = r.diags;
+        d.sort_by_key(|d| d.span.as_ref().map_or(0, |s| s.start));
+        return Err(fail(d));
+    }
+    Ok(Scene {
+        path: path.to_path_buf(),
+        name,
+        volume,
+        camera,
+        orbit,
+        stereo,
+        image,
+        passes,
+        light,
+        animation,
+        text: text.to_string(),
+        warnings: r.warnings,
+    })
+}
+
+impl Resolver<'_> {
+    fn err(&mut self, span: Range<usize>, message: impl Into<String>) {
+        self.diags.push(Diagnostic {
+            span: Some(span),
+            message: message.into(),
+        });
+    }
+
+    /// A string key that must be one of `options`; `default` when absent.
+    fn choice<T: Copy>(
+        &mut self,
+        key: &str,
+        v: &Sp<String>,
+        options: &[(&str, T)],
+        default: T,
+    ) -> T {
+        let Some(s) = v else { return default };
+        if let Some((_, t)) = options.iter().find(|(n, _)| *n == s.get_ref().as_str()) {
+            return *t;
+        }
+        let names: Vec<&str> = options.iter().map(|(n, _)| *n).collect();
+        let hint = suggest(s.get_ref(), names.iter().copied())
+            .map(|n| format!("; did you mean `{n}`?"))
+            .unwrap_or_default();
+        self.err(
+            s.span(),
+            format!(
+                "{key} = \"{}\" is not known: expected one of {}{hint}",
+                s.get_ref(),
+                quoted_list(names)
+            ),
+        );
+        default
+    }
+
+    /// A number that must satisfy `ok`; `default` when absent.
+    fn number(
+        &mut self,
+        key: &str,
+        v: &Sp<f64>,
+        default: f64,
+        ok: impl Fn(f64) -> bool,
+        expected: &str,
+    ) -> f64 {
+        match v {
+            None => default,
+            Some(s) if s.get_ref().is_finite() && ok(*s.get_ref()) => *s.get_ref(),
+            Some(s) => {
+                self.err(
+                    s.span(),
+                    format!("{key} = {}: expected {expected}", s.get_ref()),
+                );
+                default
+            }
+        }
+    }
+
+    fn vec3(&mut self, key: &str, v: &Spanned<[f64; 3]>, nonzero: bool) -> Option<DVec3> {
+        let a = DVec3::from_array(*v.get_ref());
+        if !a.is_finite() {
+            self.err(v.span(), format!("{key}: expected three finite numbers"));
+            None
+        } else if nonzero && a.length() < 1e-12 {
+            self.err(v.span(), format!("{key}: expected a non-zero vector"));
+            None
+        } else {
+            Some(a)
+        }
+    }
+
+    fn unit_color(&mut self, key: &str, v: &Spanned<[f64; 3]>) -> [f64; 3] {
+        let c = *v.get_ref();
+        if c.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) {
+            c
+        } else {
+            self.err(
+                v.span(),
+                format!("{key}: expected three numbers in [0, 1], got {c:?}"),
+            );
+            [0.0; 3]
+        }
+    }
+
+    fn window(&mut self, key: &str, v: &Sp<[f64; 2]>) -> Option<[f64; 2]> {
+        let s = v.as_ref()?;
+        let [lo, hi] = *s.get_ref();
+        if lo.is_finite() && hi.is_finite() && lo < hi {
+            Some([lo, hi])
+        } else {
+            self.err(
+                s.span(),
+                format!("{key} = [{lo}, {hi}]: expected [low, high] with low < high"),
+            );
+            None
+        }
+    }
+
+    /// Reports keys that do not belong to the chosen variant of a table.
+    fn not_for(&mut self, what: &str, keys: &[(&str, Option<Range<usize>>)]) {
+        for (k, span) in keys {
+            if let Some(span) = span {
+                self.err(span.clone(), format!("`{k}` is not used {what}"));
+            }
+        }
+    }
+}

@@ -1,0 +1,390 @@
+//! `[[render]]` passes: modes, their keys, methods and shading.
+
+use super::*;
+
+/// Which render modes use each mode-specific key of `[[render]]`.
+const MODE_KEYS: &[(&str, &[&str])] = &[
+    ("output", &["xray"]),
+    ("mu", &["xray"]),
+    ("threshold", &["lmip", "depth"]),
+    ("iso", &["surface"]),
+    ("material", &["surface", "composite"]),
+    ("shading", &["surface", "composite"]),
+    ("gradient", &["surface", "composite"]),
+    ("transfer", &["composite"]),
+    ("reference_step", &["composite"]),
+    ("early_stop", &["composite"]),
+    (
+        "window",
+        &["xray", "mip", "minip", "average", "lmip", "depth"],
+    ),
+    (
+        "integration",
+        &["xray", "mip", "minip", "average", "depth", "surface"],
+    ),
+    ("jitter", MODES),
+    ("preintegrated", &["composite"]),
+];
+
+const MODES: &[&str] = &[
+    "xray",
+    "mip",
+    "minip",
+    "average",
+    "lmip",
+    "depth",
+    "surface",
+    "composite",
+];
+
+/// The neutral material's name (a white plastic, the default of shaded passes).
+pub const NEUTRAL: &str = "neutral";
+
+impl Resolver<'_> {
+    pub(super) fn passes(
+        &mut self,
+        tables: Option<&[Spanned<RenderTable>]>,
+        materials: &BTreeMap<String, Material>,
+        transfers: &BTreeMap<String, Transfer>,
+    ) -> Vec<RenderPass> {
+        let Some(tables) = tables else {
+            return vec![RenderPass {
+                name: "mip".into(),
+                mode: Mode::Mip,
+                step_voxels: 0.5,
+                interpolation: Interpolation::Trilinear,
+                window: None,
+                integration: Integration::Sampled,
+                jitter: false,
+            }];
+        };
+        if tables.is_empty() {
+            self.warnings
+                .push("the scene has no [[render]] pass: nothing will be rendered".into());
+        }
+        let mut passes: Vec<RenderPass> = Vec::new();
+        let mut names: BTreeMap<String, Range<usize>> = BTreeMap::new();
+        for t in tables {
+            let Some(p) = self.pass(t, materials, transfers) else {
+                continue;
+            };
+            let span = t.get_ref().name.as_ref().map_or(t.span(), |n| n.span());
+            if names.contains_key(&p.name) {
+                self.err(span, format!("two passes are named `{}`: their files would overwrite each other; give each pass its own `name`", p.name));
+            } else {
+                names.insert(p.name.clone(), span);
+            }
+            passes.push(p);
+        }
+        passes
+    }
+
+    pub(super) fn pass(
+        &mut self,
+        t: &Spanned<RenderTable>,
+        materials: &BTreeMap<String, Material>,
+        transfers: &BTreeMap<String, Transfer>,
+    ) -> Option<RenderPass> {
+        let v = t.get_ref();
+        let Some(mode_s) = &v.mode else {
+            self.err(
+                t.span(),
+                format!(
+                    "[[render]] needs `mode`: one of {}",
+                    quoted_list(MODES.iter().copied())
+                ),
+            );
+            return None;
+        };
+        let mode_name = mode_s.get_ref().as_str();
+        if !MODES.contains(&mode_name) {
+            let hint = suggest(mode_name, MODES.iter().copied())
+                .map(|n| format!("; did you mean `{n}`?"))
+                .unwrap_or_default();
+            self.err(
+                mode_s.span(),
+                format!(
+                    "mode = \"{mode_name}\" is not known: expected one of {}{hint}",
+                    quoted_list(MODES.iter().copied())
+                ),
+            );
+            return None;
+        }
+        for (key, span) in v.present_keys() {
+            let users = MODE_KEYS
+                .iter()
+                .find(|(k, _)| *k == key)
+                .map_or(&[][..], |(_, m)| *m);
+            if !users.contains(&mode_name) {
+                self.err(
+                    span,
+                    format!(
+                        "`{key}` is not used by mode = \"{mode_name}\"; it is used by {}",
+                        users
+                            .iter()
+                            .map(|m| format!("\"{m}\""))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                );
+            }
+        }
+        let name = match &v.name {
+            None => mode_name.to_string(),
+            Some(n) if valid_file_stem(n.get_ref()) => n.get_ref().clone(),
+            Some(n) => {
+                self.err(n.span(), format!("name = \"{}\": expected a file-name prefix of letters, digits, '-', '_' and '.'", n.get_ref()));
+                mode_name.to_string()
+            }
+        };
+        let integration = self.choice(
+            "integration",
+            &v.integration,
+            &[
+                ("sampled", Integration::Sampled),
+                ("exact", Integration::Exact),
+            ],
+            Integration::Sampled,
+        );
+        let jitter = v.jitter.as_ref().is_some_and(|j| *j.get_ref());
+        let step_voxels = self.number(
+            "step",
+            &v.step,
+            0.5,
+            |x| (1e-4..=1e4).contains(&x),
+            "a sample spacing in voxels, from 0.0001 to 10000",
+        );
+        let interpolation = self.choice(
+            "interpolation",
+            &v.interpolation,
+            &[
+                ("nearest", Interpolation::Nearest),
+                ("trilinear", Interpolation::Trilinear),
+                ("cubic", Interpolation::Cubic),
+                ("bspline", Interpolation::BSpline),
+            ],
+            Interpolation::Trilinear,
+        );
+        let window = self.window("window", &v.window);
+        self.check_method(v, integration, interpolation, jitter);
+        let unit = |x: f64| (0.0..=1.0).contains(&x);
+        const UNIT: &str =
+            "a normalised value in [0, 1] (0 = the volume window's low end, 1 = its high end)";
+        let mode = match mode_name {
+            "xray" => Mode::Xray {
+                output: self.choice(
+                    "output",
+                    &v.output,
+                    &[
+                        ("integral", XrayOutput::Integral),
+                        ("absorbed", XrayOutput::Absorbed),
+                        ("transmitted", XrayOutput::Transmitted),
+                    ],
+                    XrayOutput::Integral,
+                ),
+                mu: self.number("mu", &v.mu, 1.0, |x| x >= 0.0, "an attenuation scale >= 0"),
+            },
+            "mip" => Mode::Mip,
+            "minip" => Mode::Minip,
+            "average" => Mode::Average,
+            "lmip" => Mode::Lmip {
+                threshold: self.number("threshold", &v.threshold, 0.5, unit, UNIT),
+            },
+            "depth" => Mode::Depth {
+                threshold: self.number("threshold", &v.threshold, 0.5, unit, UNIT),
+            },
+            "surface" => Mode::Surface {
+                iso: self.number("iso", &v.iso, 0.5, unit, UNIT),
+                shading: self.shading(v, materials, Model::Phong)?,
+            },
+            _ => {
+                let shaded = v.shading.as_ref().is_some_and(|s| s.get_ref() != "none");
+                if !shaded {
+                    for (k, s) in [("material", &v.material), ("gradient", &v.gradient)] {
+                        if let Some(s) = s {
+                            self.warnings.push(format!(
+                                "pass `{name}`: `{k} = \"{}\"` has no effect with shading = \"none\"",
+                                s.get_ref()
+                            ));
+                        }
+                    }
+                }
+                let shading = if shaded {
+                    Some(self.shading(v, materials, Model::Phong)?)
+                } else {
+                    None
+                };
+                let transfer_name = v
+                    .transfer
+                    .as_ref()
+                    .map_or("grey".to_string(), |t| t.get_ref().clone());
+                let Some(transfer) = transfers.get(&transfer_name).cloned() else {
+                    let span = v.transfer.as_ref().map_or(t.span(), |s| s.span());
+                    let hint = suggest(&transfer_name, transfers.keys().map(|s| s.as_str()))
+                        .map(|n| format!("; did you mean `{n}`?"))
+                        .unwrap_or_default();
+                    self.err(span, format!(
+                        "transfer = \"{transfer_name}\" is not defined: add a [transfer.{transfer_name}] table, or use one of {}{hint}",
+                        quoted_list(transfers.keys().map(|s| s.as_str()))
+                    ));
+                    return None;
+                };
+                let preintegrated = v.preintegrated.as_ref().is_some_and(|p| *p.get_ref());
+                if let (true, Transfer::TwoD(_), Some(p)) =
+                    (preintegrated, &transfer, &v.preintegrated)
+                {
+                    self.err(p.span(), format!(
+                        "preintegrated = true needs a 1D transfer function, but `{transfer_name}` is 2D (value x gradient magnitude); pre-integration tabulates segments over (front value, back value)"
+                    ));
+                }
+                if let Transfer::OneD(tf) = &transfer {
+                    if tf.max_alpha() == 0.0 {
+                        self.warnings.push(format!(
+                            "pass `{name}`: transfer function `{transfer_name}` has zero alpha everywhere: the image will be empty"
+                        ));
+                    }
+                }
+                Mode::Composite {
+                    transfer_name,
+                    transfer,
+                    shading,
+                    reference_step_voxels: self.number(
+                        "reference_step",
+                        &v.reference_step,
+                        1.0,
+                        |x| x > 0.0,
+                        "a positive step in voxels",
+                    ),
+                    early_stop: self.number(
+                        "early_stop",
+                        &v.early_stop,
+                        0.99,
+                        |x| x > 0.0 && x <= 1.0,
+                        "an opacity in (0, 1]",
+                    ),
+                    preintegrated,
+                }
+            }
+        };
+        if let (Some(sh), Some(g)) = (mode.shading(), &v.gradient) {
+            if sh.gradient == GradientMethod::Analytic
+                && !matches!(interpolation, Interpolation::Cubic | Interpolation::BSpline)
+            {
+                self.err(g.span(), format!(
+                    "gradient = \"analytic\" is the derivative of the cubic spline: it needs interpolation = \"cubic\" or \"bspline\" (this pass has \"{}\"); with {} use gradient = \"central\" or \"sobel\"",
+                    interpolation.name(),
+                    interpolation.name()
+                ));
+            }
+        }
+        Some(RenderPass {
+            name,
+            mode,
+            step_voxels,
+            interpolation,
+            window,
+            integration,
+            jitter,
+        })
+    }
+
+    /// Combinations of integration, interpolation and jitter that do not work.
+    pub(super) fn check_method(
+        &mut self,
+        v: &RenderTable,
+        integration: Integration,
+        interpolation: Interpolation,
+        jitter: bool,
+    ) {
+        if integration != Integration::Exact {
+            return;
+        }
+        let Some(span) = v.integration.as_ref().map(|s| s.span()) else {
+            return;
+        };
+        if interpolation != Interpolation::Trilinear {
+            let at = v.interpolation.as_ref().map_or(span.clone(), |s| s.span());
+            self.err(at, format!(
+                "integration = \"exact\" integrates the trilinear interpolant in closed form: it needs interpolation = \"trilinear\" (this pass has \"{}\"); for {} use integration = \"sampled\"",
+                interpolation.name(),
+                interpolation.name()
+            ));
+        }
+        if let (true, Some(j)) = (jitter, &v.jitter) {
+            self.err(j.span(), "jitter = true moves the samples of integration = \"sampled\"; integration = \"exact\" takes no samples (it walks the cells): remove one of them");
+        }
+    }
+
+    pub(super) fn shading(
+        &mut self,
+        v: &RenderTable,
+        materials: &BTreeMap<String, Material>,
+        default: Model,
+    ) -> Option<Shading> {
+        let model = self.choice(
+            "shading",
+            &v.shading,
+            &[
+                ("phong", Some(Model::Phong)),
+                ("blinn-phong", Some(Model::BlinnPhong)),
+                ("cook-torrance", Some(Model::CookTorrance)),
+                ("none", None),
+            ],
+            Some(default),
+        );
+        let Some(model) = model else {
+            // only composite accepts "none"; surface must shade
+            let s = v.shading.as_ref()?;
+            self.err(s.span(), "shading = \"none\" is not available for mode = \"surface\": use phong, blinn-phong or cook-torrance");
+            return None;
+        };
+        let gradient = self.choice(
+            "gradient",
+            &v.gradient,
+            &[
+                ("central", GradientMethod::Central),
+                ("sobel", GradientMethod::Sobel),
+                ("analytic", GradientMethod::Analytic),
+            ],
+            GradientMethod::Central,
+        );
+        let (material, material_name) = match &v.material {
+            None => (Material::neutral(), NEUTRAL.to_string()),
+            Some(m) => {
+                let n = m.get_ref().as_str();
+                if let Some(mat) = materials.get(n) {
+                    (*mat, n.to_string())
+                } else if let Some(mat) = Material::preset(n) {
+                    (mat, n.to_string())
+                } else if n == NEUTRAL {
+                    (Material::neutral(), NEUTRAL.to_string())
+                } else {
+                    let all: Vec<&str> = Material::PRESET_NAMES
+                        .iter()
+                        .copied()
+                        .chain([NEUTRAL])
+                        .chain(materials.keys().map(|s| s.as_str()))
+                        .collect();
+                    let hint = suggest(n, all.iter().copied())
+                        .map(|s| format!("; did you mean `{s}`?"))
+                        .unwrap_or_default();
+                    self.err(m.span(), format!("material = \"{n}\" is not defined: use a preset ({}) or add a [material.{n}] table{hint}", quoted_list(all.iter().copied())));
+                    return None;
+                }
+            }
+        };
+        Some(Shading {
+            model,
+            material,
+            material_name,
+            gradient,
+        })
+    }
+}
+
+fn valid_file_stem(s: &str) -> bool {
+    !s.is_empty()
+        && !s.starts_with('.')
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+}

@@ -1,0 +1,468 @@
+//! `[camera]`, `[orbit]`, `[image]`, `[stereo]`, `[animation]` and `[light]`.
+
+use super::*;
+
+/// Largest image side accepted.
+const MAX_IMAGE_SIDE: i64 = 32768;
+
+impl Resolver<'_> {
+    pub(super) fn camera(&mut self, t: Option<&Spanned<CameraTable>>) -> Camera {
+        let mut cam = Camera {
+            projection: Projection::Perspective,
+            fov_deg: 30.0,
+            azimuth_deg: 0.0,
+            elevation_deg: 0.0,
+            up: DVec3::Z,
+            zoom: 1.0,
+            distance: None,
+            target: None,
+        };
+        let Some(t) = t else { return cam };
+        let c = t.get_ref();
+        cam.projection = self.choice(
+            "projection",
+            &c.projection,
+            &[
+                ("perspective", Projection::Perspective),
+                ("orthographic", Projection::Orthographic),
+            ],
+            Projection::Perspective,
+        );
+        cam.fov_deg = self.number(
+            "fov",
+            &c.fov,
+            30.0,
+            |x| x > 0.0 && x < 180.0,
+            "degrees in (0, 180)",
+        );
+        if cam.projection == Projection::Orthographic {
+            if let Some(f) = &c.fov {
+                self.warnings.push(format!(
+                    "camera.fov = {} has no effect with an orthographic projection",
+                    f.get_ref()
+                ));
+            }
+            if let Some(d) = &c.distance {
+                self.err(
+                    d.span(),
+                    "`distance` is not used by the orthographic projection (use `zoom`)",
+                );
+            }
+        }
+        cam.azimuth_deg = self.number(
+            "azimuth",
+            &c.azimuth,
+            0.0,
+            |_| true,
+            "a finite number of degrees",
+        );
+        cam.elevation_deg = self.number(
+            "elevation",
+            &c.elevation,
+            0.0,
+            |x| (-90.0..=90.0).contains(&x),
+            "degrees in [-90, 90]",
+        );
+        if let Some(up) = &c.up {
+            cam.up = self
+                .vec3("up", up, true)
+                .map_or(DVec3::Z, |u| u.normalize());
+        }
+        cam.zoom = self.number("zoom", &c.zoom, 1.0, |x| x > 0.0, "a positive number");
+        cam.distance = c.distance.as_ref().map(|_| {
+            self.number(
+                "distance",
+                &c.distance,
+                1.0,
+                |x| x > 0.0,
+                "a positive distance in world units",
+            )
+        });
+        cam.target = c
+            .target
+            .as_ref()
+            .and_then(|t| self.vec3("target", t, false));
+        cam
+    }
+
+    pub(super) fn orbit(&mut self, t: Option<&Spanned<OrbitTable>>) -> Orbit {
+        let mut o = Orbit {
+            frames: 1,
+            degrees: 360.0,
+        };
+        let Some(t) = t else { return o };
+        let v = t.get_ref();
+        if let Some(f) = &v.frames {
+            if (1..=1_000_000).contains(f.get_ref()) {
+                o.frames = *f.get_ref() as usize;
+            } else {
+                self.err(
+                    f.span(),
+                    format!(
+                        "frames = {}: expected an integer from 1 to 1000000",
+                        f.get_ref()
+                    ),
+                );
+            }
+        }
+        o.degrees = self.number(
+            "degrees",
+            &v.degrees,
+            360.0,
+            |_| true,
+            "a finite number of degrees",
+        );
+        o
+    }
+
+    pub(super) fn image(&mut self, t: Option<&Spanned<ImageTable>>, scene_name: &str) -> ImageSpec {
+        let mut im = ImageSpec {
+            width: 512,
+            height: 512,
+            background: [0.0; 3],
+            format: Format::Png,
+            out: PathBuf::from("out").join(scene_name),
+        };
+        let Some(t) = t else { return im };
+        let v = t.get_ref();
+        if let Some(s) = &v.size {
+            let [w, h] = *s.get_ref();
+            if (1..=MAX_IMAGE_SIDE).contains(&w) && (1..=MAX_IMAGE_SIDE).contains(&h) {
+                im.width = w as usize;
+                im.height = h as usize;
+            } else {
+                self.err(s.span(), format!("size = [{w}, {h}]: expected [width, height], each from 1 to {MAX_IMAGE_SIDE}"));
+            }
+        }
+        if let Some(b) = &v.background {
+            im.background = self.unit_color("background", b).map(|x| x as f32);
+        }
+        im.format = self.choice(
+            "format",
+            &v.format,
+            &[
+                ("png", Format::Png),
+                ("png16", Format::Png16),
+                ("nrrd", Format::Nrrd),
+            ],
+            Format::Png,
+        );
+        if let Some(o) = &v.out {
+            match substitute_out(o.get_ref(), scene_name) {
+                Ok(p) => im.out = PathBuf::from(p),
+                Err(m) => self.err(o.span(), m),
+            }
+        }
+        im
+    }
+
+    pub(super) fn stereo(
+        &mut self,
+        t: &Spanned<StereoTable>,
+        format: Format,
+        projection: Projection,
+    ) -> Stereo {
+        let v = t.get_ref();
+        let method_name = self.choice(
+            "method",
+            &v.method,
+            &[("toe-in", false), ("parallel", true)],
+            false,
+        );
+        let angle_deg = self.number(
+            "angle",
+            &v.angle,
+            8.0,
+            |x| x > 0.0 && x < 180.0,
+            "degrees in (0, 180)",
+        );
+        let method = if method_name {
+            let given: Vec<(&str, Range<usize>)> = [
+                ("angle", v.angle.as_ref().map(|s| s.span())),
+                ("separation", v.separation.as_ref().map(|s| s.span())),
+                (
+                    "separation_fraction",
+                    v.separation_fraction.as_ref().map(|s| s.span()),
+                ),
+            ]
+            .into_iter()
+            .filter_map(|(k, s)| s.map(|s| (k, s)))
+            .collect();
+            if given.len() > 1 {
+                let names: Vec<String> = given.iter().map(|(k, _)| format!("`{k}`")).collect();
+                self.err(
+                    given[1].1.clone(),
+                    format!(
+                        "give only one of `angle`, `separation` and `separation_fraction` for parallel stereo (found {})",
+                        names.join(" and ")
+                    ),
+                );
+            }
+            if projection == Projection::Orthographic {
+                self.err(
+                    v.method.as_ref().map_or(t.span(), |m| m.span()),
+                    "method = \"parallel\" needs projection = \"perspective\": orthographic eyes with parallel directions see the same picture (use method = \"toe-in\")",
+                );
+            }
+            let separation = if let Some(s) = &v.separation {
+                Separation::World(self.number(
+                    "separation",
+                    &Some(s.clone()),
+                    1.0,
+                    |x| x > 0.0,
+                    "a positive distance between the eyes in world units",
+                ))
+            } else if let Some(f) = &v.separation_fraction {
+                Separation::Fraction(self.number(
+                    "separation_fraction",
+                    &Some(f.clone()),
+                    0.03,
+                    |x| x > 0.0 && x <= 1.0,
+                    "a fraction of the eye-target distance in (0, 1]",
+                ))
+            } else {
+                // The eyes see the target under `angle`, as toe-in eyes would.
+                Separation::Fraction(2.0 * (angle_deg.to_radians() / 2.0).tan())
+            };
+            StereoMethod::Parallel(separation)
+        } else {
+            for (k, s) in [
+                ("separation", v.separation.as_ref().map(|s| s.span())),
+                (
+                    "separation_fraction",
+                    v.separation_fraction.as_ref().map(|s| s.span()),
+                ),
+            ] {
+                if let Some(span) = s {
+                    self.err(
+                        span,
+                        format!("`{k}` is only used with method = \"parallel\" (toe-in eyes are placed by `angle`)"),
+                    );
+                }
+            }
+            StereoMethod::ToeIn
+        };
+        let layout = self.choice(
+            "layout",
+            &v.layout,
+            &[
+                ("pair", Layout::Pair),
+                ("side-by-side", Layout::SideBySide),
+                ("cross-eyed", Layout::CrossEyed),
+                ("anaglyph", Layout::Anaglyph),
+            ],
+            Layout::Pair,
+        );
+        let anaglyph = self.choice(
+            "anaglyph",
+            &v.anaglyph,
+            &[
+                ("red-cyan", Anaglyph::RedCyan),
+                ("red-green", Anaglyph::RedGreen),
+            ],
+            Anaglyph::RedCyan,
+        );
+        let anaglyph_colors = self.choice(
+            "anaglyph_colors",
+            &v.anaglyph_colors,
+            &[
+                ("color", AnaglyphColors::Color),
+                ("half-color", AnaglyphColors::HalfColor),
+                ("gray", AnaglyphColors::Gray),
+            ],
+            AnaglyphColors::Color,
+        );
+        for (key, value) in [
+            ("anaglyph", v.anaglyph.as_ref().map(|a| a.span())),
+            (
+                "anaglyph_colors",
+                v.anaglyph_colors.as_ref().map(|a| a.span()),
+            ),
+        ] {
+            if let (Some(span), false) = (value, layout == Layout::Anaglyph) {
+                self.err(
+                    span,
+                    format!("`{key}` is only used with layout = \"anaglyph\""),
+                );
+            }
+        }
+        if layout == Layout::Anaglyph && format == Format::Nrrd {
+            self.err(
+                v.layout.as_ref().map_or(t.span(), |l| l.span()),
+                "layout = \"anaglyph\" makes a colour picture: use format = \"png\" or \"png16\" (nrrd output keeps unquantised values; use layout = \"pair\")",
+            );
+        }
+        let gap = match &v.gap {
+            None => 0,
+            Some(g) if (0..=4096).contains(g.get_ref()) => *g.get_ref() as usize,
+            Some(g) => {
+                self.err(g.span(), "gap: expected a number of pixels from 0 to 4096");
+                0
+            }
+        };
+        if let (Some(g), false) = (
+            &v.gap,
+            matches!(layout, Layout::SideBySide | Layout::CrossEyed),
+        ) {
+            self.err(
+                g.span(),
+                "`gap` is only used with layout = \"side-by-side\" or \"cross-eyed\"",
+            );
+        }
+        Stereo {
+            method,
+            angle_deg,
+            layout,
+            anaglyph,
+            anaglyph_colors,
+            gap,
+        }
+    }
+
+    pub(super) fn animation(&mut self, t: &Spanned<AnimationTable>, format: Format) -> Animation {
+        let v = t.get_ref();
+        let mut formats = Vec::new();
+        match &v.formats {
+            None => formats.push(AnimationFormat::Gif),
+            Some(list) if list.get_ref().is_empty() => self.err(
+                list.span(),
+                "formats = []: expected a list of \"gif\" and/or \"apng\" (or leave out [animation])",
+            ),
+            Some(list) => {
+                for f in list.get_ref() {
+                    let chosen = self.choice(
+                        "formats",
+                        &Some(f.clone()),
+                        &[("gif", AnimationFormat::Gif), ("apng", AnimationFormat::Apng)],
+                        AnimationFormat::Gif,
+                    );
+                    if formats.contains(&chosen) {
+                        self.err(f.span(), format!("\"{}\" is listed twice", f.get_ref()));
+                    } else {
+                        formats.push(chosen);
+                    }
+                }
+            }
+        }
+        let fps = self.number(
+            "fps",
+            &v.fps,
+            24.0,
+            |x| x > 0.0 && x <= 100.0,
+            "frames per second in (0, 100]",
+        );
+        if format == Format::Nrrd {
+            self.err(
+                t.span(),
+                "[animation] is assembled from the PNG frames: use format = \"png\" or \"png16\" (nrrd frames hold unquantised values)",
+            );
+        }
+        Animation {
+            formats,
+            fps,
+            looping: v.looping.as_ref().is_none_or(|l| *l.get_ref()),
+        }
+    }
+
+    pub(super) fn light(&mut self, t: Option<&Spanned<LightTable>>) -> LightSpec {
+        let mut l = LightSpec {
+            kind: LightKindSpec::Headlight,
+            color: DVec3::ONE,
+            intensity: Some(1.0),
+        };
+        let Some(t) = t else { return l };
+        let v = t.get_ref();
+        #[derive(Clone, Copy, PartialEq)]
+        enum K {
+            Head,
+            Dir,
+            Point,
+        }
+        let kind = self.choice(
+            "kind",
+            &v.kind,
+            &[
+                ("headlight", K::Head),
+                ("directional", K::Dir),
+                ("point", K::Point),
+            ],
+            K::Head,
+        );
+        l.kind = match kind {
+            K::Head => {
+                self.not_for(
+                    "by a headlight (it shines from the camera)",
+                    &[
+                        ("direction", v.direction.as_ref().map(|s| s.span())),
+                        ("position", v.position.as_ref().map(|s| s.span())),
+                    ],
+                );
+                LightKindSpec::Headlight
+            }
+            K::Dir => {
+                self.not_for(
+                    "by a directional light",
+                    &[("position", v.position.as_ref().map(|s| s.span()))],
+                );
+                match &v.direction {
+                    Some(d) => LightKindSpec::Directional(
+                        self.vec3("direction", d, true)
+                            .unwrap_or(DVec3::Z)
+                            .normalize(),
+                    ),
+                    None => {
+                        self.err(t.span(), "a directional light needs `direction = [x, y, z]` (the direction the light travels)");
+                        LightKindSpec::Headlight
+                    }
+                }
+            }
+            K::Point => {
+                self.not_for(
+                    "by a point light",
+                    &[("direction", v.direction.as_ref().map(|s| s.span()))],
+                );
+                l.intensity = None;
+                match &v.position {
+                    Some(p) => {
+                        LightKindSpec::Point(self.vec3("position", p, false).unwrap_or(DVec3::ZERO))
+                    }
+                    None => {
+                        self.err(
+                            t.span(),
+                            "a point light needs `position = [x, y, z]` (world units)",
+                        );
+                        LightKindSpec::Headlight
+                    }
+                }
+            }
+        };
+        if let Some(c) = &v.color {
+            l.color = DVec3::from_array(self.unit_color("color", c));
+        }
+        if v.intensity.is_some() {
+            l.intensity = Some(self.number(
+                "intensity",
+                &v.intensity,
+                1.0,
+                |x| x >= 0.0,
+                "a number >= 0",
+            ));
+        }
+        l
+    }
+}
+
+/// Replaces `{scene}` in the output folder template.
+fn substitute_out(template: &str, scene: &str) -> Result<String, String> {
+    let out = template.replace("{scene}", scene);
+    if let Some(i) = out.find(['{', '}']) {
+        return Err(format!(
+            "out = \"{template}\": unknown placeholder at \"{}\"; the only placeholder is {{scene}}",
+            &out[i..]
+        ));
+    }
+    if out.trim().is_empty() {
+        return Err("out: expected a folder name".into());
+    }
+    Ok(out)
+}

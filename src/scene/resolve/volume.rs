@@ -1,0 +1,260 @@
+//! `[volume]`: a NRRD file, a raw file or a synthetic field, its window and crop.
+
+use super::*;
+
+impl Resolver<'_> {
+    pub(super) fn volume(&mut self, t: &Spanned<VolumeTable>) -> VolumeSpec {
+        let v = t.get_ref();
+        let window = self.window("window", &v.window);
+        let raw_keys = [
+            ("sizes", v.sizes.as_ref().map(|s| s.span())),
+            ("type", v.ty.as_ref().map(|s| s.span())),
+            ("endian", v.endian.as_ref().map(|s| s.span())),
+            ("spacing", v.spacing.as_ref().map(|s| s.span())),
+            ("offset", v.offset.as_ref().map(|s| s.span())),
+        ];
+        let placeholder = VolumeSource::Synthetic(Synthetic {
+            field: Field::MarschnerLobb,
+            sizes: [2, 2, 2],
+        });
+        let source = match (&v.path, &v.synthetic) {
+            (Some(p), Some(s)) => {
+                self.err(s.span(), "give either `path` or `synthetic`, not both");
+                let _ = p;
+                placeholder
+            }
+            (None, None) => {
+                self.err(t.span(), "[volume] needs `path` (a .nrrd/.nhdr or raw file) or `synthetic` (gaussian, ball, sphere-distance, marschner-lobb)");
+                placeholder
+            }
+            (None, Some(s)) => {
+                self.not_for("by synthetic volumes (raw files only)", &raw_keys[1..]);
+                if let Some(f) = &v.format {
+                    self.err(f.span(), "`format` is not used by synthetic volumes");
+                }
+                self.synthetic(v, s).unwrap_or(placeholder)
+            }
+            (Some(p), None) => self.file_source(v, p, &raw_keys).unwrap_or(placeholder),
+        };
+        let window = window.or(match source {
+            VolumeSource::Synthetic(_) => Some([0.0, 1.0]),
+            _ => None,
+        });
+        let crop = v.crop.as_ref().and_then(|c| {
+            let r = *c.get_ref();
+            if r.iter().all(|&[a, b]| 0 <= a && a <= b && b <= (1 << 31)) {
+                Some(r.map(|[a, b]| [a as usize, b as usize]))
+            } else {
+                self.err(c.span(), format!(
+                    "crop = {r:?}: expected [[x0, x1], [y0, y1], [z0, z1]], voxel index ranges with 0 <= low <= high"
+                ));
+                None
+            }
+        });
+        VolumeSpec {
+            source,
+            window,
+            crop,
+        }
+    }
+
+    pub(super) fn synthetic(
+        &mut self,
+        v: &VolumeTable,
+        s: &Spanned<String>,
+    ) -> Option<VolumeSource> {
+        let kinds = ["gaussian", "ball", "sphere-distance", "marschner-lobb"];
+        let sizes = self.sizes(&v.sizes, [64, 64, 64], 2);
+        let positive = |x: f64| x > 0.0;
+        let field = match s.get_ref().as_str() {
+            "gaussian" => {
+                if let Some(r) = &v.radius {
+                    self.err(
+                        r.span(),
+                        "`radius` is not used by the gaussian field (it takes `sigma`)",
+                    );
+                }
+                Field::Gaussian {
+                    sigma: self.number("sigma", &v.sigma, 0.25, positive, "a positive number"),
+                }
+            }
+            "ball" | "sphere-distance" => {
+                if let Some(g) = &v.sigma {
+                    self.err(
+                        g.span(),
+                        format!(
+                            "`sigma` is not used by the {} field (it takes `radius`)",
+                            s.get_ref()
+                        ),
+                    );
+                }
+                let ball = s.get_ref() == "ball";
+                let radius = self.number(
+                    "radius",
+                    &v.radius,
+                    if ball { 0.5 } else { 1.0 },
+                    positive,
+                    "a positive number",
+                );
+                if ball {
+                    Field::Ball { radius }
+                } else {
+                    Field::SphereDistance { radius }
+                }
+            }
+            "marschner-lobb" => {
+                for (k, sp) in [("sigma", &v.sigma), ("radius", &v.radius)] {
+                    if let Some(sp) = sp {
+                        self.err(
+                            sp.span(),
+                            format!("`{k}` is not used by the marschner-lobb field"),
+                        );
+                    }
+                }
+                Field::MarschnerLobb
+            }
+            other => {
+                let hint = suggest(other, kinds)
+                    .map(|n| format!("; did you mean `{n}`?"))
+                    .unwrap_or_default();
+                self.err(
+                    s.span(),
+                    format!(
+                        "synthetic = \"{other}\" is not known: expected one of {}{hint}",
+                        quoted_list(kinds)
+                    ),
+                );
+                return None;
+            }
+        };
+        Some(VolumeSource::Synthetic(Synthetic { field, sizes }))
+    }
+
+    pub(super) fn sizes(&mut self, v: &Sp<Vec<i64>>, default: [usize; 3], min: i64) -> [usize; 3] {
+        let Some(s) = v else { return default };
+        match s.get_ref().as_slice() {
+            &[a, b, c] if [a, b, c].iter().all(|&x| x >= min && x <= (1 << 31)) => {
+                [a as usize, b as usize, c as usize]
+            }
+            other => {
+                self.err(
+                    s.span(),
+                    format!("sizes = {other:?}: expected three integers, each at least {min}"),
+                );
+                default
+            }
+        }
+    }
+
+    pub(super) fn file_source(
+        &mut self,
+        v: &VolumeTable,
+        p: &Spanned<String>,
+        raw_keys: &[(&str, Option<Range<usize>>)],
+    ) -> Option<VolumeSource> {
+        for (k, sp) in [("sigma", &v.sigma), ("radius", &v.radius)] {
+            if let Some(sp) = sp {
+                self.err(
+                    sp.span(),
+                    format!("`{k}` is only used by synthetic volumes"),
+                );
+            }
+        }
+        let path = self.base_dir.join(p.get_ref());
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        let looks_nrrd = ext == "nrrd" || ext == "nhdr";
+        let has_raw_keys = raw_keys.iter().any(|(_, s)| s.is_some());
+        let format = self.choice(
+            "format",
+            &v.format,
+            &[("nrrd", Some(true)), ("raw", Some(false))],
+            if looks_nrrd {
+                Some(true)
+            } else if has_raw_keys {
+                Some(false)
+            } else {
+                None
+            },
+        );
+        match format {
+            None => {
+                self.err(p.span(), format!(
+                    "cannot tell the format of \"{}\": use a .nrrd/.nhdr file, or set format = \"raw\" with sizes and type",
+                    p.get_ref()
+                ));
+                None
+            }
+            Some(true) => {
+                self.not_for("by NRRD files (their header describes the data)", raw_keys);
+                Some(VolumeSource::Nrrd(path))
+            }
+            Some(false) => self.raw(v, path, p.span()),
+        }
+    }
+
+    pub(super) fn raw(
+        &mut self,
+        v: &VolumeTable,
+        path: PathBuf,
+        span: Range<usize>,
+    ) -> Option<VolumeSource> {
+        let mut ok = true;
+        if v.sizes.is_none() {
+            self.err(span.clone(), "a raw volume needs `sizes = [x, y, z]`");
+            ok = false;
+        }
+        let sizes = self.sizes(&v.sizes, [1, 1, 1], 1);
+        let scalar_type = match &v.ty {
+            None => {
+                self.err(
+                    span,
+                    "a raw volume needs `type` (uint8, int16, uint16, float32, ...)",
+                );
+                ok = false;
+                ScalarType::Uint8
+            }
+            Some(t) => match ScalarType::parse(t.get_ref()) {
+                Some(ty) => ty,
+                None => {
+                    let names = ScalarType::ALL.map(|t| t.nrrd_name());
+                    self.err(t.span(), format!("type = \"{}\" is not known: expected one of uint8, int8, uint16, int16, uint32, int32, uint64, int64, float32, float64 (or a NRRD alias such as {})", t.get_ref(), quoted_list(names)));
+                    ok = false;
+                    ScalarType::Uint8
+                }
+            },
+        };
+        let little_endian = self.choice(
+            "endian",
+            &v.endian,
+            &[("little", true), ("big", false)],
+            true,
+        );
+        let spacing = match &v.spacing {
+            None => [1.0; 3],
+            Some(s) if s.get_ref().iter().all(|x| x.is_finite() && *x > 0.0) => *s.get_ref(),
+            Some(s) => {
+                self.err(s.span(), "spacing: expected three positive numbers");
+                [1.0; 3]
+            }
+        };
+        let offset = match &v.offset {
+            None => 0,
+            Some(o) if *o.get_ref() >= -1 => *o.get_ref(),
+            Some(o) => {
+                self.err(o.span(), "offset: expected a byte count >= 0, or -1 for \"the data is at the end of the file\"");
+                0
+            }
+        };
+        ok.then_some(VolumeSource::Raw(RawSpec {
+            path,
+            sizes,
+            scalar_type,
+            little_endian,
+            spacing,
+            offset,
+        }))
+    }
+}
