@@ -1,0 +1,208 @@
+//! The parallel rendering of the remaining frames, batch by batch: distinct views
+//! rendered once (stereo reuse), handed to the sink with their grey windows.
+
+use super::*;
+
+pub(super) fn render_typed<T: Voxel>(
+    scene: &Scene,
+    plan: &Plan,
+    header: &VolumeHeader,
+    data: &[T],
+    norm: Normalize,
+    jobs: &[(usize, usize)],
+    emit: &Emit,
+) -> Result<Summary, Error> {
+    let Emit {
+        progress,
+        prepare,
+        sink,
+    } = *emit;
+    let geometry = header.geometry;
+    let index_from_world = geometry
+        .index_from_world_matrix()
+        .ok_or_else(|| Error::Plan {
+            scene: scene.path.clone(),
+            message: format!("the volume {} has degenerate axes", header.source),
+        })?;
+    let frame = IndexFrame::new(header.sizes, scene.volume.crop, &geometry, index_from_world);
+    let sphere = frame.bounding_sphere(&geometry);
+    let pre = Precomputed::build(scene, plan, data, header.sizes, norm);
+    let light = shade_light(scene, sphere.0);
+    let runtimes: Vec<PassRuntime<T>> = scene
+        .passes
+        .iter()
+        .zip(&plan.passes)
+        .zip(&pre.tables)
+        .map(|((pass, pp), table)| {
+            let gradient_method = pass
+                .mode
+                .shading()
+                .map_or(GradientMethod::Central, |s| s.gradient);
+            let gradients = pp
+                .gradient_volume
+                .and_then(|m| pre.gradients.iter().find(|(g, _)| *g == m))
+                .map(|(_, v)| v.as_slice());
+            let sampler = Sampler::new(
+                data,
+                header.sizes,
+                norm,
+                pass.interpolation,
+                pre.coefficients.as_deref(),
+                gradient_method,
+                gradients,
+                index_from_world,
+            );
+            PassRuntime {
+                sampler,
+                kernel: kernel(pass, table.as_ref(), light, plan.voxel_length),
+                dt: pp.dt,
+            }
+        })
+        .collect();
+    let views = &plan.views;
+    let view_of = |key: ViewKey, w: usize, h: usize| views.view(&scene.camera, key, w, h, sphere);
+
+    // Grey windows: fixed, or from a preview of every distinct view of the whole
+    // orbit (whatever frames this run renders, so that all runs agree).
+    let orbit_views: BTreeSet<ViewKey> = (0..scene.orbit.frames)
+        .flat_map(|k| views.eyes().iter().map(move |&e| views.key(k, e)))
+        .collect();
+    let windows: Vec<Option<Window>> = scene
+        .passes
+        .iter()
+        .zip(&plan.passes)
+        .zip(&runtimes)
+        .map(|((pass, pp), rt)| {
+            if !pass.mode.is_intensity() || scene.image.format == Format::Nrrd {
+                None
+            } else if let Some([lo, hi]) = pass.window {
+                Some(Window { lo, hi })
+            } else {
+                debug_assert!(pp.auto_window);
+                let (w, h) = plan.preview;
+                let films: Vec<Film> = orbit_views
+                    .par_iter()
+                    .map(|&key| {
+                        render_view(&view_of(key, w, h), &rt.kernel, &rt.sampler, &frame, rt.dt).0
+                    })
+                    .collect();
+                Some(Window::of_films(&films))
+            }
+        })
+        .collect();
+
+    prepare()?;
+    // Frames in batches: render the batch's views not yet rendered (in parallel),
+    // write its images (in parallel), drop the views no later batch needs.
+    let cache_key = |p: usize, k: usize, e: Eye| -> CacheKey {
+        (p, views.key(k, e), (!views.share).then_some((k, e)))
+    };
+    let mut batches: Vec<Vec<(usize, usize)>> = Vec::new();
+    let per_batch = frames_per_batch(rayon::current_num_threads());
+    let mut frames_in_batch = 0;
+    let mut last_frame = None;
+    for &(p, k) in jobs {
+        if last_frame != Some(k) {
+            if frames_in_batch % per_batch == 0 {
+                batches.push(Vec::new());
+            }
+            frames_in_batch += 1;
+            last_frame = Some(k);
+        }
+        batches.last_mut().expect("pushed above").push((p, k));
+    }
+    let mut last_use: HashMap<CacheKey, usize> = HashMap::new();
+    for (b, batch) in batches.iter().enumerate() {
+        for &(p, k) in batch {
+            for &e in views.eyes() {
+                last_use.insert(cache_key(p, k, e), b);
+            }
+        }
+    }
+    let mut cache: HashMap<CacheKey, Rendered> = HashMap::new();
+    let mut results: Vec<((usize, usize), Vec<PathBuf>)> = Vec::with_capacity(jobs.len());
+    let (mut rendered_views, mut samples) = (0usize, 0u64);
+    progress.start(jobs.len() as u64);
+    for (b, batch) in batches.iter().enumerate() {
+        let mut todo: Vec<(CacheKey, (usize, usize))> = Vec::new();
+        let mut seen = HashSet::new();
+        for &(p, k) in batch {
+            for &e in views.eyes() {
+                let ck = cache_key(p, k, e);
+                if !cache.contains_key(&ck) && seen.insert(ck) {
+                    todo.push((ck, (p, k)));
+                }
+            }
+        }
+        let fresh: Vec<(CacheKey, Rendered)> = todo
+            .par_iter()
+            .map(|&(ck, first)| {
+                let rt = &runtimes[ck.0];
+                let view = view_of(ck.1, plan.width, plan.height);
+                let t0 = Instant::now();
+                let (film, n) = render_view(&view, &rt.kernel, &rt.sampler, &frame, rt.dt);
+                let r = Rendered {
+                    view,
+                    film,
+                    samples: n,
+                    seconds: t0.elapsed().as_secs_f64(),
+                    first,
+                };
+                (ck, r)
+            })
+            .collect();
+        rendered_views += fresh.len();
+        samples += fresh.iter().map(|(_, r)| r.samples).sum::<u64>();
+        cache.extend(fresh);
+        let written: Vec<((usize, usize), Vec<PathBuf>)> = batch
+            .par_iter()
+            .map(|&(p, k)| {
+                let cks: Vec<CacheKey> = views.eyes().iter().map(|&e| cache_key(p, k, e)).collect();
+                let eyes: Vec<EyeView> = views
+                    .eyes()
+                    .iter()
+                    .zip(&cks)
+                    .map(|(&eye, ck)| {
+                        let r = &cache[ck];
+                        EyeView {
+                            eye,
+                            key: ck.1,
+                            view: r.view,
+                            film: &r.film,
+                            samples: r.samples,
+                        }
+                    })
+                    .collect();
+                let seconds = cks
+                    .iter()
+                    .collect::<HashSet<_>>()
+                    .into_iter()
+                    .map(|ck| &cache[ck])
+                    .filter(|r| r.first == (p, k))
+                    .map(|r| r.seconds)
+                    .sum();
+                let files = sink(&FrameViews {
+                    pass: p,
+                    frame: k,
+                    window: windows[p],
+                    eyes,
+                    seconds,
+                })?;
+                progress.advance(1);
+                Ok(((p, k), files))
+            })
+            .collect::<Result<_, Error>>()?;
+        results.extend(written);
+        cache.retain(|ck, _| last_use.get(ck).is_some_and(|&last| last > b));
+    }
+    progress.finish();
+    results.sort_by_key(|r| r.0);
+    Ok(Summary {
+        files: results.into_iter().flat_map(|r| r.1).collect(),
+        images: jobs.len(),
+        views: rendered_views,
+        samples,
+        windows,
+        ..Summary::default()
+    })
+}

@@ -1,0 +1,296 @@
+//! One run, top to bottom (like pbrt's `RenderCPU`): read the header, plan, find
+//! the (pass, frame) images that remain (`--resume`), load the voxels, precompute
+//! what the passes need, fix the grey windows, then batch by batch of frames render
+//! the distinct views in parallel and lay out, encode and write each image
+//! atomically with its manifest record; at the end, merge the manifest and, once
+//! every frame of the orbit exists, assemble the animations.
+//!
+//! Nothing is created on disk until the scene, the volume and the plan have all
+//! been checked. Every pixel depends only on the scene, the view and the pixel; a
+//! view's pose depends only on its [`ViewKey`], so sharing a view between two
+//! frames (toe-in reuse) changes no byte; and the preview pass that fixes automatic
+//! grey windows always covers every view of the whole orbit. So any frame range,
+//! shard or resumed run gives the same bytes as a full run, with any number of
+//! threads.
+
+mod frames;
+mod prepare;
+mod resume;
+mod write;
+
+pub use prepare::value_window;
+pub use resume::completed_images;
+
+use frames::render_typed;
+use prepare::{kernel, shade_light};
+use resume::{completed, create_folders, finish, jobs};
+use write::write_frame;
+
+use std::collections::{BTreeSet, HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use rayon::prelude::*;
+use serde_json::json;
+
+use crate::error::Error;
+use crate::output::animation::{self, Sequence};
+use crate::output::display::{to_display, DisplayKind, Window};
+use crate::output::manifest::{
+    self, FileRecord, FrameRecord, ManifestHead, ManifestStatus, ViewRecord,
+};
+use crate::output::write::remove_stale_temporaries;
+use crate::output::{encode, frame_path, stereo, write_atomic, Eye};
+use crate::plan::{Plan, RunOptions, TABLE_1D, TABLE_2D};
+use crate::render::{render_view, Film, IndexFrame, Kernel, TransferTable, View};
+use crate::sample::{gradient_volume, prefilter_cubic, GradientMethod, Normalize, Sampler};
+use crate::scene::{AnaglyphColors, Format, Layout, LightKindSpec, Mode, Scene, Transfer};
+use crate::shade::{Light, LightKind, Shader};
+use crate::transfer::{Table1D, Table2D};
+use crate::views::{frames_per_batch, ViewKey};
+use crate::volume::{Limits, Stats, Volume, VolumeHeader, Voxel};
+use crate::with_volume_data;
+
+/// Reports progress in units of finished (pass, frame) images.
+pub trait Progress: Sync {
+    /// The run will produce `total` images.
+    fn start(&self, _total: u64) {}
+    /// `n` more images are done.
+    fn advance(&self, _n: u64) {}
+    /// All done.
+    fn finish(&self) {}
+}
+
+/// Progress that is not shown.
+pub struct NoProgress;
+impl Progress for NoProgress {}
+
+/// What a run did.
+#[derive(Clone, Debug, Default)]
+pub struct Summary {
+    /// Image files written, in (pass, frame, eye) order.
+    pub files: Vec<PathBuf>,
+    /// (pass, frame) images written.
+    pub images: usize,
+    /// (pass, frame) images skipped because `--resume` found them complete.
+    pub skipped: usize,
+    /// Distinct views rendered (excluding preview passes).
+    pub views: usize,
+    /// Field samples taken (excluding preview passes).
+    pub samples: u64,
+    /// Wall-clock seconds of the whole run.
+    pub seconds: f64,
+    /// Grey windows used per pass (`None` for colour passes, NRRD output, and runs
+    /// that rendered nothing).
+    pub windows: Vec<Option<Window>>,
+    /// The merged manifest (`None` for runs that keep films in memory).
+    pub manifest: Option<ManifestStatus>,
+    /// Animations written by this run.
+    pub animations: Vec<animation::Written>,
+    /// The ffmpeg command that makes an MP4 of each image sequence (none for NRRD).
+    pub ffmpeg: Vec<String>,
+    /// Things worth telling the user (unreadable records, removed temporaries).
+    pub notes: Vec<String>,
+}
+
+/// Renders `scene` and writes its images, their manifest records, the merged
+/// manifest and, once the sequence is complete, its animations.
+pub fn render(
+    scene: &Scene,
+    opts: &RunOptions,
+    limits: &Limits,
+    progress: &dyn Progress,
+) -> Result<Summary, Error> {
+    let start = Instant::now();
+    let header = scene.volume.source.header()?;
+    let plan = Plan::build(scene, &header, opts)?;
+    let digest = manifest::scene_digest(scene, &header, plan.width, plan.height);
+    let done = if opts.resume {
+        completed(scene, &plan, &digest)?
+    } else {
+        HashSet::new()
+    };
+    let jobs = jobs(scene, &plan, &done);
+    let mut summary = Summary {
+        skipped: done.len(),
+        ..Summary::default()
+    };
+    if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
+        summary.notes.push(format!(
+            "shard {shard} has no frames of {}..{}: nothing to render",
+            plan.frames.start, plan.frames.end
+        ));
+    }
+    if !jobs.is_empty() {
+        let volume = scene.volume.source.load(limits)?;
+        let norm = value_window(scene, &volume)?;
+        let shard = plan.shard.map(|s| s.to_string());
+        let prepare = || create_folders(&plan.out);
+        let sink = |fv: &FrameViews| -> Result<Vec<PathBuf>, Error> {
+            let t0 = Instant::now();
+            let files = write_frame(scene, &plan, fv)?;
+            let record = FrameRecord {
+                scene_hash: digest.clone(),
+                volcast_version: env!("CARGO_PKG_VERSION").into(),
+                pass: scene.passes[fv.pass].name.clone(),
+                frame: fv.frame,
+                views: fv
+                    .eyes
+                    .iter()
+                    .map(|e| {
+                        ViewRecord::new(
+                            e.eye,
+                            e.key,
+                            scene.camera.azimuth_deg + plan.views.azimuth_offset_deg(e.key),
+                            scene.camera.elevation_deg,
+                            &e.view,
+                            e.samples,
+                        )
+                    })
+                    .collect(),
+                window: fv.window.map(|w| [w.lo, w.hi]),
+                samples: fv.eyes.iter().map(|e| e.samples).sum(),
+                seconds: fv.seconds + t0.elapsed().as_secs_f64(),
+                shard: shard.clone(),
+                files: files.iter().map(|f| f.1.clone()).collect(),
+            };
+            manifest::write_record(&plan.out, &record)?;
+            Ok(files.into_iter().map(|f| f.0).collect())
+        };
+        let emit = Emit {
+            progress,
+            prepare: &prepare,
+            sink: &sink,
+        };
+        let s = with_volume_data!(&volume.data, v => render_typed(scene, &plan, &volume.header, v, norm, &jobs, &emit))?;
+        summary = Summary {
+            skipped: summary.skipped,
+            ..s
+        };
+    }
+    finish(scene, &plan, &header, &digest, &mut summary)?;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// One rendered view, kept in memory.
+#[derive(Clone, Debug)]
+pub struct RenderedView {
+    /// Index of the pass in the scene.
+    pub pass: usize,
+    /// Frame number.
+    pub frame: usize,
+    /// Which eye.
+    pub eye: Eye,
+    /// The distinct view this eye shows.
+    pub key: ViewKey,
+    /// Its pose and image plane.
+    pub view: View,
+    /// The unquantised values (what `nrrd` output stores for a mono view).
+    pub film: Film,
+}
+
+/// Renders `scene` like [`render`] but returns the films instead of writing files
+/// (the same code path up to the encoders; used by tests and benchmarks). Views come
+/// in (pass, frame, eye) order.
+pub fn render_films(
+    scene: &Scene,
+    opts: &RunOptions,
+    limits: &Limits,
+) -> Result<(Vec<RenderedView>, Summary), Error> {
+    let start = Instant::now();
+    let header = scene.volume.source.header()?;
+    let plan = Plan::build(scene, &header, opts)?;
+    let volume = scene.volume.source.load(limits)?;
+    let norm = value_window(scene, &volume)?;
+    let collected = std::sync::Mutex::new(Vec::new());
+    let sink = |fv: &FrameViews| {
+        let mut c = collected.lock().expect("no panics while holding the lock");
+        c.extend(fv.eyes.iter().map(|e| RenderedView {
+            pass: fv.pass,
+            frame: fv.frame,
+            eye: e.eye,
+            key: e.key,
+            view: e.view,
+            film: e.film.clone(),
+        }));
+        Ok(Vec::new())
+    };
+    let jobs = jobs(scene, &plan, &HashSet::new());
+    let emit = Emit {
+        progress: &NoProgress,
+        prepare: &|| Ok(()),
+        sink: &sink,
+    };
+    let mut summary = with_volume_data!(&volume.data, v => render_typed(scene, &plan, &volume.header, v, norm, &jobs, &emit))?;
+    summary.seconds = start.elapsed().as_secs_f64();
+    let mut views = collected
+        .into_inner()
+        .expect("no panics while holding the lock");
+    views.sort_by_key(|v| (v.pass, v.frame, v.eye));
+    Ok((views, summary))
+}
+
+/// One eye of a (pass, frame), rendered.
+struct EyeView<'a> {
+    eye: Eye,
+    key: ViewKey,
+    view: View,
+    film: &'a Film,
+    samples: u64,
+}
+
+/// The views of one (pass, frame), ready to lay out and write.
+struct FrameViews<'a> {
+    pass: usize,
+    frame: usize,
+    /// The pass's grey window.
+    window: Option<Window>,
+    /// In the plan's eye order.
+    eyes: Vec<EyeView<'a>>,
+    /// Seconds spent rendering the views first needed by this (pass, frame).
+    seconds: f64,
+}
+
+/// Receives the views of one (pass, frame); returns the files written.
+type Sink<'a> = dyn Fn(&FrameViews) -> Result<Vec<PathBuf>, Error> + Sync + 'a;
+
+/// Where rendered views go.
+struct Emit<'a> {
+    progress: &'a dyn Progress,
+    /// Called once before the first image is handed to the sink (creates folders).
+    prepare: &'a (dyn Fn() -> Result<(), Error> + Sync + 'a),
+    sink: &'a Sink<'a>,
+}
+
+/// Owned precomputations of one run.
+struct Precomputed {
+    coefficients: Option<Vec<f32>>,
+    gradients: Vec<(GradientMethod, Vec<[f32; 3]>)>,
+    tables: Vec<Option<OwnedTable>>,
+}
+
+enum OwnedTable {
+    OneD(Table1D),
+    TwoD(Table2D),
+}
+
+/// Everything one pass needs at render time.
+struct PassRuntime<'a, T: Voxel> {
+    sampler: Sampler<'a, T>,
+    kernel: Kernel<'a>,
+    dt: f64,
+}
+
+/// A view rendered at full size, kept while frames still need it.
+struct Rendered {
+    view: View,
+    film: Film,
+    samples: u64,
+    seconds: f64,
+    /// The (pass, frame) it was rendered for (its time is counted there).
+    first: (usize, usize),
+}
+
+/// A view of a pass, as cached: with `share` off, each (frame, eye) has its own.
+type CacheKey = (usize, ViewKey, Option<(usize, Eye)>);
