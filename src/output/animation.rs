@@ -181,36 +181,15 @@ fn batch() -> usize {
     (2 * rayon::current_num_threads()).max(2)
 }
 
-fn write_apng(dest: &Path, frames: &[PathBuf], anim: &Animation) -> Result<f64, Error> {
-    let first = decode(&frames[0])?;
-    let (num, den) = apng_delay(anim.fps);
-    let fail = |e: png::EncodingError| Error::Encode {
-        path: dest.to_path_buf(),
-        message: e.to_string(),
-    };
+/// Writes `dest` atomically from `fill`, keeping `fill`'s own error (the atomic
+/// writer only carries I/O errors, so an encoder's error is passed around it).
+fn stream_atomic(
+    dest: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> Result<(), Error>,
+) -> Result<(), Error> {
     let mut inner: Result<(), Error> = Ok(());
-    let io = write_atomic_with(dest, |w: &mut dyn Write| {
-        let result = (|| {
-            let mut enc = png::Encoder::new(&mut *w, first.width, first.height);
-            enc.set_color(first.color);
-            enc.set_depth(first.depth);
-            enc.set_animated(frames.len() as u32, if anim.looping { 0 } else { 1 })
-                .map_err(fail)?;
-            enc.set_frame_delay(num, den).map_err(fail)?;
-            let mut writer = enc.write_header().map_err(fail)?;
-            for chunk in frames.chunks(batch()) {
-                let decoded: Vec<Decoded> = chunk
-                    .par_iter()
-                    .map(|p| decode(p))
-                    .collect::<Result<_, _>>()?;
-                for (d, p) in decoded.iter().zip(chunk) {
-                    same_kind(&first, d, p)?;
-                    writer.write_image_data(&d.data).map_err(fail)?;
-                }
-            }
-            writer.finish().map_err(fail)
-        })();
-        result.map_err(|e| {
+    let io = write_atomic_with(dest, |w| {
+        fill(w).map_err(|e| {
             inner = Err(e);
             std::io::Error::other("animation not written")
         })
@@ -219,6 +198,35 @@ fn write_apng(dest: &Path, frames: &[PathBuf], anim: &Animation) -> Result<f64, 
     io.map_err(|source| Error::Output {
         path: dest.to_path_buf(),
         source,
+    })
+}
+
+fn write_apng(dest: &Path, frames: &[PathBuf], anim: &Animation) -> Result<f64, Error> {
+    let first = decode(&frames[0])?;
+    let (num, den) = apng_delay(anim.fps);
+    let fail = |e: png::EncodingError| Error::Encode {
+        path: dest.to_path_buf(),
+        message: e.to_string(),
+    };
+    stream_atomic(dest, |w: &mut dyn Write| {
+        let mut enc = png::Encoder::new(&mut *w, first.width, first.height);
+        enc.set_color(first.color);
+        enc.set_depth(first.depth);
+        enc.set_animated(frames.len() as u32, if anim.looping { 0 } else { 1 })
+            .map_err(fail)?;
+        enc.set_frame_delay(num, den).map_err(fail)?;
+        let mut writer = enc.write_header().map_err(fail)?;
+        for chunk in frames.chunks(batch()) {
+            let decoded: Vec<Decoded> = chunk
+                .par_iter()
+                .map(|p| decode(p))
+                .collect::<Result<_, _>>()?;
+            for (d, p) in decoded.iter().zip(chunk) {
+                same_kind(&first, d, p)?;
+                writer.write_image_data(&d.data).map_err(fail)?;
+            }
+        }
+        writer.finish().map_err(fail)
     })?;
     Ok(den as f64 / num as f64)
 }
@@ -265,50 +273,38 @@ fn write_gif(dest: &Path, frames: &[PathBuf], anim: &Animation) -> Result<f64, E
     } else {
         Vec::new()
     };
-    let mut inner: Result<(), Error> = Ok(());
-    let io = write_atomic_with(dest, |out: &mut dyn Write| {
-        let result = (|| {
-            let gif_err = |e: gif::EncodingError| fail(e.to_string());
-            let mut enc = gif::Encoder::new(&mut *out, w, h, &palette).map_err(gif_err)?;
-            if anim.looping {
-                enc.set_repeat(gif::Repeat::Infinite).map_err(gif_err)?;
+    stream_atomic(dest, |out: &mut dyn Write| {
+        let gif_err = |e: gif::EncodingError| fail(e.to_string());
+        let mut enc = gif::Encoder::new(&mut *out, w, h, &palette).map_err(gif_err)?;
+        if anim.looping {
+            enc.set_repeat(gif::Repeat::Infinite).map_err(gif_err)?;
+        }
+        for chunk in frames.chunks(batch()) {
+            let encoded: Vec<gif::Frame<'static>> = chunk
+                .par_iter()
+                .map(|p| {
+                    let d = decode(p)?;
+                    same_kind(&first, &d, p)?;
+                    let px = eight_bit(&d);
+                    let mut f = if grey {
+                        gif::Frame {
+                            width: w,
+                            height: h,
+                            buffer: px.into(),
+                            ..gif::Frame::default()
+                        }
+                    } else {
+                        gif::Frame::from_rgb_speed(w, h, &px, 10)
+                    };
+                    f.delay = delay;
+                    Ok(f)
+                })
+                .collect::<Result<_, Error>>()?;
+            for f in &encoded {
+                enc.write_frame(f).map_err(gif_err)?;
             }
-            for chunk in frames.chunks(batch()) {
-                let encoded: Vec<gif::Frame<'static>> = chunk
-                    .par_iter()
-                    .map(|p| {
-                        let d = decode(p)?;
-                        same_kind(&first, &d, p)?;
-                        let px = eight_bit(&d);
-                        let mut f = if grey {
-                            gif::Frame {
-                                width: w,
-                                height: h,
-                                buffer: px.into(),
-                                ..gif::Frame::default()
-                            }
-                        } else {
-                            gif::Frame::from_rgb_speed(w, h, &px, 10)
-                        };
-                        f.delay = delay;
-                        Ok(f)
-                    })
-                    .collect::<Result<_, Error>>()?;
-                for f in &encoded {
-                    enc.write_frame(f).map_err(gif_err)?;
-                }
-            }
-            Ok(())
-        })();
-        result.map_err(|e| {
-            inner = Err(e);
-            std::io::Error::other("animation not written")
-        })
-    });
-    inner?;
-    io.map_err(|source| Error::Output {
-        path: dest.to_path_buf(),
-        source,
+        }
+        Ok(())
     })?;
     Ok(100.0 / delay as f64)
 }
