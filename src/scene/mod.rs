@@ -280,6 +280,18 @@ pub enum Transfer {
     TwoD(Arc<Transfer2D>),
 }
 
+/// The scene-file names of the render modes, in the order of [`Mode`]'s variants.
+pub const MODE_NAMES: &[&str] = &[
+    "xray",
+    "mip",
+    "minip",
+    "average",
+    "lmip",
+    "depth",
+    "surface",
+    "composite",
+];
+
 /// What a pass computes per ray, with its parameters.
 #[derive(Clone, Debug)]
 pub enum Mode {

@@ -26,16 +26,7 @@ const MODE_KEYS: &[(&str, &[&str])] = &[
     ("preintegrated", &["composite"]),
 ];
 
-const MODES: &[&str] = &[
-    "xray",
-    "mip",
-    "minip",
-    "average",
-    "lmip",
-    "depth",
-    "surface",
-    "composite",
-];
+use super::super::MODE_NAMES as MODES;
 
 /// The neutral material's name (a white plastic, the default of shaded passes).
 pub const NEUTRAL: &str = "neutral";
