@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 
 pub use geometry::Geometry;
 pub use limits::Limits;
-pub use scalar::{ScalarType, VolumeData, Voxel};
+pub use scalar::{ScalarType, VolumeData, Voxel, Voxels};
 pub use stats::Stats;
 pub use synthetic::Synthetic;
 

@@ -202,6 +202,90 @@ impl_voxel!(u64, ScalarType::Uint64, f64::round);
 impl_voxel!(f32, ScalarType::Float32, |v| v);
 impl_voxel!(f64, ScalarType::Float64, |v| v);
 
+/// A read-only view of voxels of type `T` in native byte order, x fastest: the
+/// storage the renderer samples. The bytes may sit at any address (a memory-mapped
+/// file's data starts wherever its header ends), so elements are read with
+/// unaligned loads, which cost the same as aligned ones on the CPUs volcast targets.
+#[derive(Clone, Copy, Debug)]
+pub struct Voxels<'a, T> {
+    bytes: &'a [u8],
+    len: usize,
+    _type: std::marker::PhantomData<T>,
+}
+
+impl<'a, T: Voxel> Voxels<'a, T> {
+    /// The voxels in `bytes` (native byte order; `bytes.len()` a multiple of the
+    /// element size, any alignment).
+    pub fn from_bytes(bytes: &'a [u8]) -> Voxels<'a, T> {
+        let size = std::mem::size_of::<T>();
+        assert_eq!(bytes.len() % size, 0, "whole elements");
+        Voxels {
+            bytes,
+            len: bytes.len() / size,
+            _type: std::marker::PhantomData,
+        }
+    }
+
+    /// The voxels of a typed slice.
+    pub fn from_slice(values: &'a [T]) -> Voxels<'a, T> {
+        // SAFETY: `T` is a primitive number (the `Voxel` implementations), without
+        // padding, so its values' memory is `size_of_val` initialised bytes.
+        let bytes = unsafe {
+            std::slice::from_raw_parts(values.as_ptr().cast::<u8>(), std::mem::size_of_val(values))
+        };
+        Voxels::from_bytes(bytes)
+    }
+
+    /// Number of voxels.
+    #[inline(always)]
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when there are no voxels.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Voxel `i` (panics when `i >= len()`).
+    #[inline(always)]
+    pub fn get(&self, i: usize) -> T {
+        assert!(i < self.len, "voxel index {i} out of {}", self.len);
+        // SAFETY: `i < len` and `len * size_of::<T>() <= bytes.len()`, so the element
+        // lies inside `bytes`; every bit pattern is a valid `T` (primitive numbers);
+        // `read_unaligned` has no alignment requirement.
+        unsafe {
+            self.bytes
+                .as_ptr()
+                .add(i * std::mem::size_of::<T>())
+                .cast::<T>()
+                .read_unaligned()
+        }
+    }
+
+    /// Voxels `base` and `base + offsets[..]`, with one bounds check: `offsets` must
+    /// be ascending, so the last one is the largest.
+    #[inline(always)]
+    pub fn get_many<const N: usize>(&self, base: usize, offsets: [usize; N]) -> [T; N] {
+        let last = base + offsets[N - 1];
+        assert!(last < self.len, "voxel index {last} out of {}", self.len);
+        debug_assert!(offsets.windows(2).all(|w| w[0] <= w[1]));
+        // SAFETY: every index is at most `last < len` (ascending offsets), see `get`.
+        offsets.map(|o| unsafe {
+            self.bytes
+                .as_ptr()
+                .add((base + o) * std::mem::size_of::<T>())
+                .cast::<T>()
+                .read_unaligned()
+        })
+    }
+
+    /// Every voxel, in order.
+    pub fn iter(&self) -> impl Iterator<Item = T> + '_ {
+        (0..self.len).map(|i| self.get(i))
+    }
+}
+
 /// Voxel values in their native type, x fastest.
 #[derive(Clone, Debug, PartialEq)]
 pub enum VolumeData {
@@ -261,6 +345,16 @@ impl VolumeData {
             VolumeData::F32(_) => ScalarType::Float32,
             VolumeData::F64(_) => ScalarType::Float64,
         }
+    }
+
+    /// The voxels as a typed view, when they are of type `T`.
+    pub fn voxels<T: Voxel>(&self) -> Option<Voxels<'_, T>> {
+        if self.scalar_type() != T::TYPE {
+            return None;
+        }
+        Some(
+            with_volume_data!(self, v => Voxels::from_bytes(Voxels::from_slice(v.as_slice()).bytes)),
+        )
     }
 
     /// Number of elements.

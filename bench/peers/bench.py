@@ -1,0 +1,135 @@
+#!/usr/bin/env python3
+"""Runs every peer and volcast interleaved (round-robin over peers, the order rotated at each
+repetition), takes medians, compares each peer's image with the reference of the volume it
+read, and writes RESULTS/results.md (table), results.csv and speed_vs_error.png.
+Usage: bench.py --results DIR [--data DIR] [--reps 5] [--peers volcast,vtk,teem,volpack]
+(run_all.sh installs the peers, makes the volume and the reference first)."""
+import argparse
+import csv
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+
+import common as C
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+PEERS = ("volcast", "vtk", "teem", "volpack")
+LABEL = {"volcast": "volcast", "vtk": "VTK 9.7.2", "teem": "teem 1.12", "volpack": "VolPack 1.0b3",
+         "volpack-raw": "VolPack 1.0b3 (from raw)"}
+INPUT = {"volpack": "u8", "volpack-raw": "u8"}   # every other peer reads the float32 volume
+
+
+def run_peer(peer, data, images, reps_inside):
+    script = {"volcast": "run_volcast.py", "vtk": "run_vtk.py", "teem": "run_teem.py",
+              "volpack": "run_volpack.py"}[peer]
+    cmd = [sys.executable, os.path.join(HERE, script), "--data", data, "--out", images]
+    if peer in ("vtk", "volpack"):
+        cmd += ["--renders", str(reps_inside)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        print(f"bench: {peer} failed (exit {r.returncode}):\n{r.stderr[-3000:]}", file=sys.stderr)
+        return []
+    return [json.loads(line[7:]) for line in r.stdout.splitlines() if line.startswith("RESULT ")]
+
+
+def error_of(peer, mode, view, images, refs):
+    got = C.load_result(images, peer, mode, view)
+    ref = C.load_result(refs, f"ref_{INPUT.get(peer, 'f32')}", mode, view)
+    return C.errors(mode, got, ref)
+
+
+def machine():
+    cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")), "?")
+    return f"{os.cpu_count()} CPUs, {cpu}, {platform.system()} {platform.release()}"
+
+
+def plot(rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 4, figsize=(18, 4.5))
+    markers = {"volcast": "o", "vtk": "s", "teem": "^", "volpack": "D", "volpack-raw": "d"}
+    for ax, mode in zip(axes, C.MODES):
+        for peer in markers:
+            pts = [r for r in rows if r["peer"] == peer and r["mode"] == mode]
+            if not pts:
+                continue
+            err = [(1 - r["iou"]) if mode == "iso" else r["rmse"] for r in pts]
+            ax.scatter(err, [r["seconds"] for r in pts], marker=markers[peer], label=LABEL[peer])
+            for e, r in zip(err, pts):
+                ax.annotate(r["view"], (e, r["seconds"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        ax.set_yscale("log")
+        ax.set_xscale("symlog", linthresh=0.01)
+        ax.set_xlabel("1 - IoU of covered pixels" if mode == "iso" else "RMSE (grey levels of 255)")
+        ax.set_ylabel("seconds per frame")
+        ax.set_title(mode)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle("Speed against error, 512 x 512, 2 threads (lower left is better)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--data", default="/work/peers-data")
+    ap.add_argument("--results", required=True)
+    ap.add_argument("--reps", type=int, default=5)
+    ap.add_argument("--renders", type=int, default=5, help="warm renders per VTK/VolPack call")
+    ap.add_argument("--peers", default=",".join(PEERS))
+    a = ap.parse_args()
+    images = os.path.join(a.results, "images")
+    refs = os.path.join(a.data, "reference")
+    os.makedirs(images, exist_ok=True)
+    peers = a.peers.split(",")
+    records = []
+    for rep in range(a.reps):
+        order = peers[rep % len(peers):] + peers[:rep % len(peers)]
+        for peer in order:
+            start = time.time()
+            got = run_peer(peer, a.data, images, a.renders)
+            for r in got:
+                r["rep"] = rep
+            records += got
+            print(f"bench: repetition {rep + 1}/{a.reps}: {peer}: {len(got)} cases, {time.time() - start:.0f} s", flush=True)
+    json.dump(records, open(os.path.join(a.results, "timings.json"), "w"), indent=1)
+
+    cases = sorted({(r["peer"], r["mode"], r["view"]) for r in records},
+                   key=lambda c: (C.VIEWS.index(c[2]), C.MODES.index(c[1]), list(LABEL).index(c[0])))
+    secs = {c: statistics.median(r["seconds"] for r in records if (r["peer"], r["mode"], r["view"]) == c)
+            for c in cases}
+    rows = []
+    for peer, mode, view in cases:
+        e = error_of(peer, mode, view, images, refs)
+        base = secs.get(("volcast", mode, view))
+        rows.append(dict(peer=peer, mode=mode, view=view, seconds=secs[(peer, mode, view)],
+                         ratio=secs[(peer, mode, view)] / base if base else float("nan"),
+                         rmse=e["rmse"], iou=e.get("iou", float("nan")),
+                         reps=sum(1 for r in records if (r["peer"], r["mode"], r["view"]) == (peer, mode, view))))
+    with open(os.path.join(a.results, "results.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    lines = [f"Peer benchmark, {time.strftime('%Y-%m-%d %H:%M')}, {machine()}; volcast = "
+             f"{os.environ.get('VOLCAST', '/work/main/target/release/volcast')}; {a.reps} repetitions, medians.",
+             "", "| view | mode | peer | seconds per frame | ratio to volcast | error vs reference |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for r in rows:
+        err = f"IoU {r['iou']:.3f}, shade RMSE {r['rmse']:.2f}" if r["mode"] == "iso" else f"RMSE {r['rmse']:.3f}"
+        lines.append(f"| {r['view']} | {r['mode']} | {LABEL[r['peer']]} | {r['seconds']:.3f} | "
+                     f"{r['ratio']:.2f} | {err} |")
+    table = "\n".join(lines) + "\n"
+    open(os.path.join(a.results, "results.md"), "w").write(table)
+    print(table)
+    try:
+        plot(rows, os.path.join(a.results, "speed_vs_error.png"))
+    except ImportError:
+        print("bench: matplotlib missing: no plot", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
