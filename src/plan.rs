@@ -3,31 +3,31 @@
 //! volume's *header* (no voxels read), so `volcast check` can print it and a scene
 //! that cannot be rendered is rejected before anything is loaded or written.
 //!
-//! Each pass computes only what it needs: a gradient volume only for composite
+//! The plan is the one factory of render passes: each scene pass becomes a
+//! [`RenderPass`], which says what it needs (see `render::pass`); the plan adds up
+//! those needs, shared between passes (one gradient volume per estimator, one set of
+//! cubic coefficients, one macrocell grid per kind), and nothing downstream decides
+//! again. Each pass computes only what it needs: a gradient volume only for composite
 //! passes that shade or use a 2D transfer function with a grid estimator (surface
 //! passes take gradients on the fly at their one hit per ray, and `gradient =
 //! "analytic"` differentiates the spline on the fly), prefiltered coefficients only
 //! for `cubic` interpolation, a transfer-function table only for composite passes, a
 //! pre-integration table only for `preintegrated` composite passes (built for the
-//! pass's step), and a preview pass for the grey window only for intensity modes
-//! written as PNG without a fixed `window`. Exact passes (`integration = "exact"`)
-//! precompute nothing: they walk the cells of the voxels themselves.
+//! pass's step), a macrocell grid for empty-space skipping (one per kind of filter
+//! support), and a preview pass for the grey window only for intensity modes written
+//! as PNG without a fixed `window`.
 
 use std::fmt::Write as _;
 use std::ops::Range;
 
 use crate::error::Error;
 use crate::output::Eye;
-use crate::sample::{GradientMethod, Interpolation};
-use crate::scene::Integration;
-use crate::scene::{Format, Layout, Mode, Scene, Transfer};
-use crate::transfer::{Preintegrated, COLOR_ENTRIES, INTEGRAL_ENTRIES};
+use crate::render::pass::GridSource;
+use crate::render::skip::MacroGrid;
+use crate::render::{ImageKind, IndexFrame, RenderPass};
+use crate::scene::{Format, Layout, LightKindSpec, Scene};
+use crate::shade::{Light, LightKind};
 use crate::volume::{human_bytes, VolumeHeader};
-
-/// Entries of a 1D transfer-function table.
-pub const TABLE_1D: usize = 4096;
-/// Entries per axis of a 2D transfer-function table.
-pub const TABLE_2D: usize = 256;
 
 /// Options of a run that are not part of the scene.
 #[derive(Clone, Debug, Default)]
@@ -48,23 +48,9 @@ pub struct RunOptions {
     /// Render every (frame, eye) image on its own even where stereo views coincide
     /// (the same bytes, more work; for comparisons).
     pub no_view_reuse: bool,
-}
-
-/// What a pass needs before its first ray.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PassPlan {
-    /// Sample spacing in world units.
-    pub dt: f64,
-    /// Gradient volume to precompute (3 x f32 per voxel), if any.
-    pub gradient_volume: Option<GradientMethod>,
-    /// Whether the pass samples prefiltered cubic coefficients.
-    pub cubic: bool,
-    /// Transfer-function table entries, if any.
-    pub table_entries: Option<usize>,
-    /// Bytes of the pre-integration table (pre-integrated composite passes only).
-    pub preintegrated_bytes: Option<u64>,
-    /// Whether the grey window comes from a preview pass.
-    pub auto_window: bool,
+    /// March every sample of every ray instead of skipping empty space (the same
+    /// images, slower; for comparisons).
+    pub no_skip: bool,
 }
 
 /// The plan of a run.
@@ -86,8 +72,14 @@ pub struct Plan {
     pub height: usize,
     /// Output folder.
     pub out: std::path::PathBuf,
-    /// One entry per scene pass.
-    pub passes: Vec<PassPlan>,
+    /// One render pass per scene pass, in order.
+    pub passes: Vec<RenderPass>,
+    /// Per pass: whether its grey window comes from a preview pass.
+    pub auto_window: Vec<bool>,
+    /// The volume's box in index space and the map to it (rays are clipped to it).
+    pub frame: IndexFrame,
+    /// The bounding sphere of the box (what cameras frame).
+    pub sphere: (glam::DVec3, f64),
     /// Size of the preview used for automatic grey windows.
     pub preview: (usize, usize),
     /// World length of one voxel of the smallest spacing.
@@ -96,6 +88,9 @@ pub struct Plan {
     pub volume_bytes: u64,
     /// Bytes of all precomputed volumes and tables.
     pub precomputed_bytes: u64,
+    /// Bytes allocated only while the precomputations are built (the prefilter's
+    /// double-precision copy).
+    pub transient_bytes: u64,
     /// Bytes of the films in flight (one per thread, at most).
     pub film_bytes: u64,
     /// Worker threads assumed for the estimate.
@@ -175,71 +170,51 @@ impl Plan {
             .into_iter()
             .fold(f64::INFINITY, f64::min);
         let voxels = header.voxel_count() as u64;
-        let mut gradient_methods = Vec::new();
-        let mut cubic = false;
-        let mut table_bytes = 0u64;
-        let passes: Vec<PassPlan> = scene
+        let index_from_world = geometry
+            .index_from_world_matrix()
+            .expect("checked by is_valid above");
+        let frame = IndexFrame::new(header.sizes, scene.volume.crop, geometry, index_from_world);
+        let sphere = frame.bounding_sphere(geometry);
+        let light = shade_light(scene, sphere.0);
+        let passes: Vec<RenderPass> = scene
             .passes
             .iter()
-            .map(|p| {
-                let (gradient_volume, table_entries) = match &p.mode {
-                    Mode::Composite {
-                        transfer, shading, ..
-                    } => {
-                        let two_d = matches!(transfer, Transfer::TwoD(_));
-                        // analytic gradients come from the spline on the fly
-                        let g = (shading.is_some() || two_d)
-                            .then(|| {
-                                shading
-                                    .as_ref()
-                                    .map_or(GradientMethod::Central, |s| s.gradient)
-                            })
-                            .filter(|g| *g != GradientMethod::Analytic);
-                        (g, Some(if two_d { TABLE_2D * TABLE_2D } else { TABLE_1D }))
-                    }
-                    _ => (None, None),
-                };
-                if let Some(g) = gradient_volume {
-                    if !gradient_methods.contains(&g) {
-                        gradient_methods.push(g);
-                    }
-                }
-                table_bytes += table_entries.map_or(0, |n| n as u64 * 16);
-                let preintegrated_bytes = matches!(
-                    p.mode,
-                    Mode::Composite {
-                        preintegrated: true,
-                        ..
-                    }
-                )
-                .then(Preintegrated::planned_bytes);
-                table_bytes += preintegrated_bytes.unwrap_or(0);
-                cubic |= p.interpolation == Interpolation::Cubic;
-                PassPlan {
-                    dt: p.step_voxels * voxel_length,
-                    gradient_volume,
-                    cubic: p.interpolation == Interpolation::Cubic,
-                    table_entries,
-                    preintegrated_bytes,
-                    auto_window: p.mode.is_intensity()
-                        && p.window.is_none()
-                        && scene.image.format != Format::Nrrd,
-                }
+            .map(|p| RenderPass::new(p, header.scalar_type, voxel_length, light, !opts.no_skip))
+            .collect();
+        let auto_window = scene
+            .passes
+            .iter()
+            .zip(&passes)
+            .map(|(p, rp)| {
+                rp.kind() != ImageKind::Rgba
+                    && p.window.is_none()
+                    && scene.image.format != Format::Nrrd
             })
             .collect();
+        // shared precomputations, each counted once
+        let mut gradient_methods: Vec<_> = passes
+            .iter()
+            .filter_map(|p| p.needs().gradient_volume)
+            .collect();
+        gradient_methods.sort_by_key(|g| g.name());
+        gradient_methods.dedup();
+        let cubic = passes.iter().any(|p| p.needs().coefficients);
+        let mut grids: Vec<GridSource> = passes.iter().filter_map(|p| p.needs().grid).collect();
+        grids.sort();
+        grids.dedup();
+        let lut_bytes = header.scalar_type.lut_size() as u64 * 4;
+        let table_bytes: u64 = passes.iter().map(|p| p.table_bytes(header.sizes)).sum();
         let precomputed_bytes = voxels
             .saturating_mul(12 * gradient_methods.len() as u64 + if cubic { 4 } else { 0 })
-            .saturating_add(table_bytes);
+            .saturating_add(grids.len() as u64 * MacroGrid::bytes(header.sizes))
+            .saturating_add(table_bytes)
+            .saturating_add(lut_bytes);
+        let transient_bytes = if cubic { voxels.saturating_mul(8) } else { 0 };
         let threads = opts
             .threads
             .unwrap_or_else(rayon::current_num_threads)
             .max(1);
-        let channels_max = scene
-            .passes
-            .iter()
-            .map(|p| if p.mode.is_intensity() { 1 } else { 4 })
-            .max()
-            .unwrap_or(1);
+        let channels_max = passes.iter().map(|p| p.channels()).max().unwrap_or(1);
         // Views kept for one batch of frames (plus those a reused toe-in eye keeps
         // for later frames), and display copies for the images being encoded.
         let kept_views = (crate::views::frames_per_batch(threads)
@@ -269,10 +244,14 @@ impl Plan {
             height,
             out,
             passes,
+            auto_window,
+            frame,
+            sphere,
             preview: (width.div_ceil(4).max(8), height.div_ceil(4).max(8)),
             voxel_length,
             volume_bytes: header.data_bytes(),
             precomputed_bytes,
+            transient_bytes,
             film_bytes,
             threads,
             samples_estimate,
@@ -287,10 +266,11 @@ impl Plan {
         }
     }
 
-    /// Total estimated memory.
+    /// Total estimated memory at its peak (while the precomputations are built).
     pub fn memory_bytes(&self) -> u64 {
         self.volume_bytes
             .saturating_add(self.precomputed_bytes)
+            .saturating_add(self.transient_bytes)
             .saturating_add(self.film_bytes)
     }
 
@@ -353,60 +333,21 @@ impl Plan {
         );
         let files = self.frame_list.len() * Self::files_per_frame(scene) * scene.passes.len();
         let _ = writeln!(s, "passes   {} ({files} files)", scene.passes.len());
-        for (p, pp) in scene.passes.iter().zip(&self.passes) {
+        for ((p, rp), &auto) in scene.passes.iter().zip(&self.passes).zip(&self.auto_window) {
             let _ = writeln!(
                 s,
                 "  {:<12} {:<9} step {} voxels ({:.4} world), {}",
                 p.name,
                 p.mode.name(),
                 p.step_voxels,
-                pp.dt,
+                rp.dt,
                 p.interpolation.name()
             );
-            let mut needs = Vec::new();
-            if p.integration == Integration::Exact {
-                needs.push(
-                    "exact integration of the trilinear interpolant, cell by cell (no step)".into(),
-                );
-            }
-            if p.jitter {
-                needs.push("jittered first sample per pixel".into());
-            }
-            if let Some(g) = pp.gradient_volume {
-                needs.push(format!("{} gradient volume", g.name()));
-            }
+            let mut needs = rp.describe(header.sizes);
             if let Some(sh) = p.mode.shading() {
-                if sh.gradient == GradientMethod::Analytic {
-                    needs.push(format!(
-                        "analytic gradients of the {} spline, on the fly",
-                        p.interpolation.name()
-                    ));
-                } else if pp.gradient_volume.is_none() {
-                    needs.push(format!(
-                        "{} gradients at the hit points",
-                        sh.gradient.name()
-                    ));
-                }
-                needs.push(
-                    format!("{:?} shading, material {}", sh.model, sh.material_name).to_lowercase(),
-                );
+                needs.push(format!("material {}", sh.material_name));
             }
-            if pp.cubic {
-                needs.push("prefiltered cubic coefficients".into());
-            }
-            if let (Some(n), Mode::Composite { transfer_name, .. }) = (pp.table_entries, &p.mode) {
-                needs.push(format!("transfer table `{transfer_name}` ({n} entries)"));
-            }
-            if let Some(b) = pp.preintegrated_bytes {
-                needs.push(format!(
-                    "pre-integration table ({} integral entries, {}x{} segment colours for this step, {})",
-                    INTEGRAL_ENTRIES + 1,
-                    COLOR_ENTRIES,
-                    COLOR_ENTRIES,
-                    human_bytes(b)
-                ));
-            }
-            if pp.auto_window {
+            if auto {
                 needs.push(format!(
                     "grey window from a {}x{} preview of every frame",
                     self.preview.0, self.preview.1
@@ -417,12 +358,22 @@ impl Plan {
             if needs.is_empty() {
                 needs.push("nothing precomputed".into());
             }
-            let _ = writeln!(s, "               {}", needs.join("; "));
+            for n in needs {
+                let _ = writeln!(s, "               {n}");
+            }
         }
         s.push_str(&crate::output::describe_outputs(scene, &self.out));
+        let transient = if self.transient_bytes > 0 {
+            format!(
+                ", {} more while the cubic prefilter runs",
+                human_bytes(self.transient_bytes)
+            )
+        } else {
+            String::new()
+        };
         let _ = writeln!(
             s,
-            "memory   about {} (volume {}, precomputed {}, images in flight {} for {} threads)",
+            "memory   about {} (volume {}, precomputed {}, images in flight {} for {} threads{transient})",
             human_bytes(self.memory_bytes()),
             human_bytes(self.volume_bytes),
             human_bytes(self.precomputed_bytes),
@@ -431,5 +382,32 @@ impl Plan {
         );
         let _ = write!(s, "samples  at most about {:.3e}", self.samples_estimate);
         s
+    }
+}
+
+/// The light of the scene in renderer form (`centre`: the volume box's centre, the
+/// default target).
+fn shade_light(scene: &Scene, centre: glam::DVec3) -> Light {
+    let target = scene.camera.target.unwrap_or(centre);
+    let l = &scene.light;
+    let (kind, default_intensity) = match l.kind {
+        LightKindSpec::Headlight => (LightKind::Headlight, 1.0),
+        LightKindSpec::Directional(d) => (
+            LightKind::Directional {
+                direction: d.as_vec3(),
+            },
+            1.0,
+        ),
+        LightKindSpec::Point(p) => (
+            LightKind::Point {
+                position: p.as_vec3(),
+            },
+            (p - target).length_squared().max(1e-12),
+        ),
+    };
+    Light {
+        kind,
+        color: l.color.as_vec3(),
+        intensity: l.intensity.unwrap_or(default_intensity) as f32,
     }
 }

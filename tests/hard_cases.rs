@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use glam::{DMat3, DVec3};
-use volcast::render::integrator::{trace, Exact, Integrand, Kernel, PixelRay};
+use volcast::render::integrator::{trace, Depth, Exact, Integrand, Minip, Mip, PixelRay, Xray};
 use volcast::render::IndexFrame;
 use volcast::sample::{GradientMethod, Interpolation, Normalize, Sampler};
 use volcast::scene::XrayOutput;
@@ -55,8 +55,9 @@ fn pixel_ray(n: [usize; 3], o: DVec3, d: DVec3) -> Option<PixelRay> {
     })
 }
 
-fn kernel(i: Integrand<'static>) -> Kernel<'static> {
-    Kernel::from(i)
+/// One ray through `integrand` (no skipping): the value and the samples taken.
+fn run(integrand: &impl Integrand, s: &Sampler<f32>, r: &PixelRay, step: f64) -> ([f32; 4], u64) {
+    trace(integrand, s, r, step, 0.0)
 }
 
 /// A multilinear field (reproduced exactly by trilinear interpolation), in (0, 1)
@@ -91,11 +92,11 @@ fn axis_rays_on_faces_edges_corners_and_box_faces_are_never_lost() {
         // Simpson is exact for this field along the ray (linear in y)
         let integral = 5.0 / 6.0 * (g(0.0) + 4.0 * g(2.5) + g(5.0));
         for step in [0.37, 1.0, 5.0, 7.0] {
-            let xray = kernel(Integrand::Xray {
+            let xray = Xray {
                 output: XrayOutput::Integral,
                 mu: 1.0,
-            });
-            let (got, n_samples) = trace(&xray, &s, &r, step, 0.0);
+            };
+            let (got, n_samples) = run(&xray, &s, &r, step);
             assert!(n_samples >= 2, "entry and exit are both sampled");
             // the trapezoid rule is exact for a function linear along the ray
             assert!(
@@ -104,16 +105,16 @@ fn axis_rays_on_faces_edges_corners_and_box_faces_are_never_lost() {
                 got[0]
             );
             // the exit (the maximum) and the entry (the minimum) are sampled exactly
-            let (mip, _) = trace(&kernel(Integrand::Mip), &s, &r, step, 0.0);
-            let (minip, _) = trace(&kernel(Integrand::Minip), &s, &r, step, 0.0);
+            let (mip, _) = run(&Mip, &s, &r, step);
+            let (minip, _) = run(&Minip, &s, &r, step);
             assert!(
                 (mip[0] as f64 - g(5.0)).abs() < 1e-6 && (minip[0] as f64 - g(0.0)).abs() < 1e-6
             );
         }
-        let exact = kernel(Integrand::Exact(Exact::Xray {
+        let exact = Exact::Xray {
             output: XrayOutput::Integral,
             mu: 1.0,
-        }));
+        };
         let (got, cells) = trace(&exact, &s, &r, 1.0, 0.0);
         assert_eq!(cells, 5, "five cells along y");
         assert!((got[0] as f64 - integral).abs() < 1e-5);
@@ -129,10 +130,10 @@ fn axis_rays_on_faces_edges_corners_and_box_faces_are_never_lost() {
     };
     let (a, b) = (r.t_enter, r.t_exit);
     let integral = len / 6.0 * (g(a) + 4.0 * g(0.5 * (a + b)) + g(b));
-    let exact = kernel(Integrand::Exact(Exact::Xray {
+    let exact = Exact::Xray {
         output: XrayOutput::Integral,
         mu: 1.0,
-    }));
+    };
     let (got, cells) = trace(&exact, &s, &r, 1.0, 0.0);
     assert_eq!(
         cells, 5,
@@ -151,12 +152,11 @@ fn axis_rays_on_faces_edges_corners_and_box_faces_are_never_lost() {
     )
     .expect("grazes the corner");
     assert!((r.t_exit - r.t_enter).abs() < 1e-12);
-    for k in [
-        Integrand::Mip,
-        Integrand::Exact(Exact::Mip),
-        Integrand::Exact(Exact::Average),
+    for got in [
+        run(&Mip, &s, &r, 0.5).0,
+        run(&Exact::Mip, &s, &r, 0.5).0,
+        run(&Exact::Average, &s, &r, 0.5).0,
     ] {
-        let (got, _) = trace(&kernel(k), &s, &r, 0.5, 0.0);
         assert!(
             (got[0] as f64 - multilinear(0.0, 0.0, 0.0)).abs() < 1e-6,
             "{got:?}"
@@ -547,13 +547,15 @@ fn ties_in_mip() {
     let v = voxels(n, |_, y, _| if y == 1.0 || y == 3.0 { 0.8 } else { 0.2 });
     let s = sampler(&v, n);
     let r = pixel_ray(n, DVec3::new(1.0, -1.0, 1.0), DVec3::Y).unwrap();
-    for k in [Integrand::Mip, Integrand::Exact(Exact::Mip)] {
-        for step in [0.5, 1.0] {
-            let (got, _) = trace(&kernel(k.clone()), &s, &r, step, 0.0);
-            assert_eq!(got[0], 0.8f32, "{k:?} step {step}");
+    for step in [0.5, 1.0] {
+        for (what, got) in [
+            ("sampled", run(&Mip, &s, &r, step).0),
+            ("exact", run(&Exact::Mip, &s, &r, step).0),
+        ] {
+            assert_eq!(got[0], 0.8f32, "{what} step {step}");
         }
     }
-    let (got, _) = trace(&kernel(Integrand::Exact(Exact::Minip)), &s, &r, 1.0, 0.0);
+    let (got, _) = run(&Exact::Minip, &s, &r, 1.0);
     assert_eq!(got[0], 0.2f32);
 }
 
@@ -568,16 +570,7 @@ fn iso_surfaces_tangent_to_the_ray() {
     let d = DVec3::new(1.0, 1.0, 0.0).normalize();
     let r = pixel_ray(n, DVec3::new(-1.0, -1.0, 0.5), d).unwrap();
     let tangent = r.t_enter + 0.5 * 2f64.sqrt();
-    let depth = |t: f32| {
-        trace(
-            &kernel(Integrand::Exact(Exact::Depth { threshold: t })),
-            &s,
-            &r,
-            1.0,
-            0.0,
-        )
-        .0[0]
-    };
+    let depth = |t: f32| trace(&Exact::Depth { threshold: t }, &s, &r, 1.0, 0.0).0[0];
     let hit = depth(0.5) as f64 - (r.t_enter - r.t_depth_ref);
     assert!(
         (hit - (tangent - r.t_enter)).abs() < 1e-6,
@@ -590,13 +583,7 @@ fn iso_surfaces_tangent_to_the_ray() {
     assert!((below - s_root * 2f64.sqrt()).abs() < 1e-5, "{below}");
     // sampled marching: a sample on the tangent point finds it; others miss cleanly
     for (step, hits) in [(2f64.sqrt() / 4.0, true), (0.3, false)] {
-        let (got, _) = trace(
-            &kernel(Integrand::Depth { threshold: 0.5 }),
-            &s,
-            &r,
-            step,
-            0.0,
-        );
+        let (got, _) = trace(&Depth { threshold: 0.5 }, &s, &r, step, 0.0);
         assert_eq!(!got[0].is_nan(), hits, "step {step}: {got:?}");
     }
 }

@@ -11,4 +11,5 @@ mod determinism;
 mod geometry;
 mod hard_cases;
 mod nrrd;
+mod skipping;
 mod stereo;

@@ -82,6 +82,10 @@ pub struct SceneArgs {
     /// another frame (same bytes, more work; for comparisons).
     #[arg(long)]
     pub no_view_reuse: bool,
+    /// March every sample of every ray instead of skipping empty space (the same
+    /// images, slower; for comparisons and benchmarks).
+    #[arg(long)]
+    pub no_skip: bool,
 }
 
 /// A `--shard` value.

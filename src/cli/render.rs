@@ -33,6 +33,7 @@ pub(super) fn prepare(
         shard,
         resume: a.resume,
         no_view_reuse: a.no_view_reuse,
+        no_skip: a.no_skip,
     };
     let mut limits = volcast::volume::Limits::default();
     if let Some(m) = a.max_memory {
@@ -124,8 +125,17 @@ fn report(summary: &pipeline::Summary) {
     } else {
         String::new()
     };
+    let skipping = if summary.nominal_samples > summary.samples {
+        format!(
+            " ({:.0}% of {:.1} M samples skipped)",
+            100.0 * (1.0 - summary.samples as f64 / summary.nominal_samples as f64),
+            summary.nominal_samples as f64 / 1e6
+        )
+    } else {
+        String::new()
+    };
     eprintln!(
-        "volcast: {} files ({} views rendered{skipped}, {}) in {:.2} s, {:.1} M samples/s -> {folder}",
+        "volcast: {} files ({} views rendered{skipped}, {}) in {:.2} s, {:.1} M samples/s{skipping} -> {folder}",
         summary.files.len(),
         summary.views,
         human_bytes(bytes),

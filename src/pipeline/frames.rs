@@ -3,11 +3,10 @@
 
 use super::*;
 
-pub(super) fn render_typed<T: Voxel>(
+pub(super) fn render_passes(
     scene: &Scene,
     plan: &Plan,
-    header: &VolumeHeader,
-    data: &[T],
+    volume: &Volume,
     norm: Normalize,
     jobs: &[(usize, usize)],
     emit: &Emit,
@@ -17,48 +16,26 @@ pub(super) fn render_typed<T: Voxel>(
         prepare,
         sink,
     } = *emit;
-    let geometry = header.geometry;
-    let index_from_world = geometry
-        .index_from_world_matrix()
-        .ok_or_else(|| Error::Plan {
-            scene: scene.path.clone(),
-            message: format!("the volume {} has degenerate axes", header.source),
-        })?;
-    let frame = IndexFrame::new(header.sizes, scene.volume.crop, &geometry, index_from_world);
-    let sphere = frame.bounding_sphere(&geometry);
-    let pre = Precomputed::build(scene, plan, data, header.sizes, norm);
-    let light = shade_light(scene, sphere.0);
-    let runtimes: Vec<PassRuntime<T>> = scene
-        .passes
-        .iter()
-        .zip(&plan.passes)
-        .zip(&pre.tables)
-        .map(|((pass, pp), table)| {
-            let gradient_method = pass
-                .mode
-                .shading()
-                .map_or(GradientMethod::Central, |s| s.gradient);
-            let gradients = pp
-                .gradient_volume
-                .and_then(|m| pre.gradients.iter().find(|(g, _)| *g == m))
-                .map(|(_, v)| v.as_slice());
-            let sampler = Sampler::new(
-                data,
-                header.sizes,
-                norm,
-                pass.interpolation,
-                pre.coefficients.as_deref(),
-                gradient_method,
-                gradients,
-                index_from_world,
-            );
-            PassRuntime {
-                sampler,
-                kernel: kernel(pass, table.as_ref(), light, plan.voxel_length),
-                dt: pp.dt,
-            }
-        })
-        .collect();
+    let header = &volume.header;
+    let index_from_world =
+        header
+            .geometry
+            .index_from_world_matrix()
+            .ok_or_else(|| Error::Plan {
+                scene: scene.path.clone(),
+                message: format!("the volume {} has degenerate axes", header.source),
+            })?;
+    let frame = plan.frame;
+    let sphere = plan.sphere;
+    let resources = Resources::build(
+        &volume.data,
+        header.sizes,
+        norm,
+        index_from_world,
+        &plan.passes,
+    );
+    let runtimes: Vec<Box<dyn RenderView + '_>> =
+        plan.passes.iter().map(|p| p.prepare(&resources)).collect();
     let views = &plan.views;
     let view_of = |key: ViewKey, w: usize, h: usize| views.view(&scene.camera, key, w, h, sphere);
 
@@ -72,19 +49,18 @@ pub(super) fn render_typed<T: Voxel>(
         .iter()
         .zip(&plan.passes)
         .zip(&runtimes)
-        .map(|((pass, pp), rt)| {
-            if !pass.mode.is_intensity() || scene.image.format == Format::Nrrd {
+        .zip(&plan.auto_window)
+        .map(|(((pass, rp), rt), &auto)| {
+            if rp.kind() == ImageKind::Rgba || scene.image.format == Format::Nrrd {
                 None
             } else if let Some([lo, hi]) = pass.window {
                 Some(Window { lo, hi })
             } else {
-                debug_assert!(pp.auto_window);
+                debug_assert!(auto);
                 let (w, h) = plan.preview;
                 let films: Vec<Film> = orbit_views
                     .par_iter()
-                    .map(|&key| {
-                        render_view(&view_of(key, w, h), &rt.kernel, &rt.sampler, &frame, rt.dt).0
-                    })
+                    .map(|&key| rt.render(&view_of(key, w, h), &frame).0)
                     .collect();
                 Some(Window::of_films(&films))
             }
@@ -121,7 +97,7 @@ pub(super) fn render_typed<T: Voxel>(
     }
     let mut cache: HashMap<CacheKey, Rendered> = HashMap::new();
     let mut results: Vec<((usize, usize), Vec<PathBuf>)> = Vec::with_capacity(jobs.len());
-    let (mut rendered_views, mut samples) = (0usize, 0u64);
+    let (mut rendered_views, mut samples, mut nominal) = (0usize, 0u64, 0u64);
     progress.start(jobs.len() as u64);
     for (b, batch) in batches.iter().enumerate() {
         let mut todo: Vec<(CacheKey, (usize, usize))> = Vec::new();
@@ -140,11 +116,12 @@ pub(super) fn render_typed<T: Voxel>(
                 let rt = &runtimes[ck.0];
                 let view = view_of(ck.1, plan.width, plan.height);
                 let t0 = Instant::now();
-                let (film, n) = render_view(&view, &rt.kernel, &rt.sampler, &frame, rt.dt);
+                let (film, counts) = rt.render(&view, &frame);
                 let r = Rendered {
                     view,
                     film,
-                    samples: n,
+                    samples: counts.taken,
+                    nominal: counts.nominal,
                     seconds: t0.elapsed().as_secs_f64(),
                     first,
                 };
@@ -153,6 +130,7 @@ pub(super) fn render_typed<T: Voxel>(
             .collect();
         rendered_views += fresh.len();
         samples += fresh.iter().map(|(_, r)| r.samples).sum::<u64>();
+        nominal += fresh.iter().map(|(_, r)| r.nominal).sum::<u64>();
         cache.extend(fresh);
         let written: Vec<((usize, usize), Vec<PathBuf>)> = batch
             .par_iter()
@@ -202,6 +180,7 @@ pub(super) fn render_typed<T: Voxel>(
         images: jobs.len(),
         views: rendered_views,
         samples,
+        nominal_samples: nominal,
         windows,
         ..Summary::default()
     })

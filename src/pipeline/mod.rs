@@ -21,8 +21,7 @@ mod write;
 pub use prepare::value_window;
 pub use resume::completed_images;
 
-use frames::render_typed;
-use prepare::{kernel, shade_light};
+use frames::render_passes;
 use resume::{completed, create_folders, finish, jobs};
 use write::write_frame;
 
@@ -41,15 +40,12 @@ use crate::output::manifest::{
 };
 use crate::output::write::remove_stale_temporaries;
 use crate::output::{encode, frame_path, stereo, write_atomic, Eye};
-use crate::plan::{Plan, RunOptions, TABLE_1D, TABLE_2D};
-use crate::render::{render_view, Film, IndexFrame, Kernel, TransferTable, View};
-use crate::sample::{gradient_volume, prefilter_cubic, GradientMethod, Normalize, Sampler};
-use crate::scene::{AnaglyphColors, Format, Layout, LightKindSpec, Mode, Scene, Transfer};
-use crate::shade::{Light, LightKind, Shader};
-use crate::transfer::{Table1D, Table2D};
+use crate::plan::{Plan, RunOptions};
+use crate::render::{Film, ImageKind, RenderView, Resources, View};
+use crate::sample::Normalize;
+use crate::scene::{AnaglyphColors, Format, Layout, Scene};
 use crate::views::{frames_per_batch, ViewKey};
-use crate::volume::{Limits, Stats, Volume, VolumeHeader, Voxel};
-use crate::with_volume_data;
+use crate::volume::{Limits, Stats, Volume, VolumeHeader};
 
 /// Reports progress in units of finished (pass, frame) images.
 pub trait Progress: Sync {
@@ -78,6 +74,9 @@ pub struct Summary {
     pub views: usize,
     /// Field samples taken (excluding preview passes).
     pub samples: u64,
+    /// Field samples the march would take without empty-space skipping (excluding
+    /// preview passes).
+    pub nominal_samples: u64,
     /// Wall-clock seconds of the whole run.
     pub seconds: f64,
     /// Grey windows used per pass (`None` for colour passes, NRRD output, and runs
@@ -162,7 +161,7 @@ pub fn render(
             prepare: &prepare,
             sink: &sink,
         };
-        let s = with_volume_data!(&volume.data, v => render_typed(scene, &plan, &volume.header, v, norm, &jobs, &emit))?;
+        let s = render_passes(scene, &plan, &volume, norm, &jobs, &emit)?;
         summary = Summary {
             skipped: summary.skipped,
             ..s
@@ -222,7 +221,7 @@ pub fn render_films(
         prepare: &|| Ok(()),
         sink: &sink,
     };
-    let mut summary = with_volume_data!(&volume.data, v => render_typed(scene, &plan, &volume.header, v, norm, &jobs, &emit))?;
+    let mut summary = render_passes(scene, &plan, &volume, norm, &jobs, &emit)?;
     summary.seconds = start.elapsed().as_secs_f64();
     let mut views = collected
         .into_inner()
@@ -263,30 +262,12 @@ struct Emit<'a> {
     sink: &'a Sink<'a>,
 }
 
-/// Owned precomputations of one run.
-struct Precomputed {
-    coefficients: Option<Vec<f32>>,
-    gradients: Vec<(GradientMethod, Vec<[f32; 3]>)>,
-    tables: Vec<Option<OwnedTable>>,
-}
-
-enum OwnedTable {
-    OneD(Table1D),
-    TwoD(Table2D),
-}
-
-/// Everything one pass needs at render time.
-struct PassRuntime<'a, T: Voxel> {
-    sampler: Sampler<'a, T>,
-    kernel: Kernel<'a>,
-    dt: f64,
-}
-
 /// A view rendered at full size, kept while frames still need it.
 struct Rendered {
     view: View,
     film: Film,
     samples: u64,
+    nominal: u64,
     seconds: f64,
     /// The (pass, frame) it was rendered for (its time is counted there).
     first: (usize, usize),

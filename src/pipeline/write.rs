@@ -13,8 +13,8 @@ pub(super) fn write_frame(
     let pass = &scene.passes[p];
     let format = scene.image.format;
     let bg = scene.image.background;
-    let display_kind = match (&pass.mode, window) {
-        (Mode::Depth { .. }, Some(w)) => DisplayKind::Depth(w),
+    let display_kind = match (plan.passes[p].kind(), window) {
+        (ImageKind::Depth, Some(w)) => DisplayKind::Depth(w),
         (_, Some(w)) => DisplayKind::Intensity(w),
         _ => DisplayKind::Rgba,
     };
@@ -41,7 +41,7 @@ pub(super) fn write_frame(
                 _ => bg[..left.channels.min(3)].to_vec(),
             };
             // grey passes always combine luminance; shaded ones as the scene says
-            let colors = if pass.mode.is_intensity() {
+            let colors = if plan.passes[p].kind() != ImageKind::Rgba {
                 AnaglyphColors::Gray
             } else {
                 st.anaglyph_colors

@@ -1,12 +1,26 @@
-//! Rendering: views, rays and integrators, and the one parallel loop that runs them.
-//! Opens no files; produces [`Film`]s of `f32` channels.
+//! Rendering: views, rays, render passes and their integrators, and the one
+//! parallel loop that runs them. Opens no files; produces [`Film`]s of `f32`
+//! channels.
+//!
+//! ```text
+//! pass.rs        RenderPass (planned) --prepare--> dyn RenderView (generic inside)
+//! frame.rs       the loop over a view's pixels, in tiles
+//! integrator/    one type per mode: what a ray computes; `drive`, the one sampling loop
+//! march.rs       where a ray is sampled
+//! skip.rs        the macrocell grid and its walk (empty-space skipping)
+//! camera.rs, ray.rs   views, rays and their clipping to the volume's box
+//! ```
 
 pub mod camera;
 pub mod frame;
 pub mod integrator;
+pub mod march;
+pub mod pass;
 pub mod ray;
+pub mod skip;
 
 pub use camera::{Ray, View};
-pub use frame::{render_view, Film};
-pub use integrator::{Kernel, TransferTable};
+pub use frame::{Film, Kernel, RenderView};
+pub use integrator::Counts;
+pub use pass::{ImageKind, Needs, RenderPass, Resources};
 pub use ray::IndexFrame;

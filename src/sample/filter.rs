@@ -4,17 +4,27 @@
 use rayon::prelude::*;
 
 use super::{GradientMethod, Normalize};
-use crate::volume::Voxel;
+use crate::volume::{Voxel, Voxels};
 
 /// The pole of the cubic B-spline prefilter, `sqrt(3) - 2` (Unser 1999).
 const POLE: f64 = -0.267_949_192_431_122_7;
 
 /// Coefficients `c` such that the cubic B-spline through `c` interpolates the
 /// normalised voxel values (mirror boundary conditions), as `f32`.
-pub fn prefilter_cubic<T: Voxel>(data: &[T], n: [usize; 3], norm: Normalize) -> Vec<f32> {
-    let mut c: Vec<f64> = data
-        .par_iter()
-        .map(|v| norm.apply(v.to_f64()) as f64)
+pub fn prefilter_cubic<'a, T: Voxel>(
+    data: impl Into<Voxels<'a, T>>,
+    n: [usize; 3],
+    norm: Normalize,
+) -> Vec<f32> {
+    let data = data.into();
+    prefilter_normalised(n, |i| norm.apply(data.get(i).to_f64()))
+}
+
+/// [`prefilter_cubic`] of the voxels whose normalised values are `value(flat index)`.
+pub fn prefilter_normalised(n: [usize; 3], value: impl Fn(usize) -> f32 + Sync) -> Vec<f32> {
+    let mut c: Vec<f64> = (0..n[0] * n[1] * n[2])
+        .into_par_iter()
+        .map(|i| value(i) as f64)
         .collect();
     let [nx, ny, nz] = n;
     // x lines are contiguous
@@ -81,16 +91,26 @@ fn prefilter_line(c: &mut [f64]) {
 }
 
 /// Index-space gradient of the normalised voxels at every voxel.
-pub fn gradient_volume<T: Voxel>(
-    data: &[T],
+pub fn gradient_volume<'a, T: Voxel>(
+    data: impl Into<Voxels<'a, T>>,
     n: [usize; 3],
     norm: Normalize,
     method: GradientMethod,
 ) -> Vec<[f32; 3]> {
+    let data = data.into();
+    gradient_volume_normalised(n, method, |i| norm.apply(data.get(i).to_f64()))
+}
+
+/// [`gradient_volume`] of the voxels whose normalised values are `value(flat index)`.
+pub fn gradient_volume_normalised(
+    n: [usize; 3],
+    method: GradientMethod,
+    value: impl Fn(usize) -> f32 + Sync,
+) -> Vec<[f32; 3]> {
     let [nx, ny, nz] = n;
     let get = |i: isize, j: isize, k: isize| {
         let c = |x: isize, m: usize| x.clamp(0, m as isize - 1) as usize;
-        norm.apply(data[c(i, nx) + nx * (c(j, ny) + ny * c(k, nz))].to_f64())
+        value(c(i, nx) + nx * (c(j, ny) + ny * c(k, nz)))
     };
     (0..nx * ny * nz)
         .into_par_iter()

@@ -93,6 +93,22 @@ impl Table1D {
         self.entries.len()
     }
 
+    /// The entries' opacities, in order of value.
+    pub fn alphas(&self) -> impl Iterator<Item = f32> + '_ {
+        self.entries.iter().map(|e| e[3])
+    }
+
+    /// The table with every entry's opacity replaced by `f(opacity)` (colours kept).
+    pub fn map_alpha(&self, f: impl Fn(f32) -> f32) -> Table1D {
+        Table1D {
+            entries: self
+                .entries
+                .iter()
+                .map(|&[r, g, b, a]| [r, g, b, f(a)])
+                .collect(),
+        }
+    }
+
     /// Always false: a table has at least 2 entries.
     pub fn is_empty(&self) -> bool {
         self.entries.is_empty()

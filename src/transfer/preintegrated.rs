@@ -155,6 +155,19 @@ impl Preintegrated {
         (self.k(hi) - self.k(lo)) / (hi - lo)
     }
 
+    /// True when every segment whose two end values lie in `[lo, hi]` is fully
+    /// transparent: the tabulated extinction integral is flat over the range and
+    /// the one table entry around it that narrow segments are widened to (see
+    /// [`Preintegrated::mean_extinction`]), so their opacity is exactly zero.
+    pub fn transparent(&self, lo: f64, hi: f64) -> bool {
+        let m = INTEGRAL_ENTRIES;
+        let w = 1.0 / m as f64;
+        let index = |v: f64| (v.clamp(0.0, 1.0) * m as f64) as usize;
+        let (a, b) = (index(lo - 2.0 * w), (index(hi + 2.0 * w) + 1).min(m));
+        // K never decreases (the extinction is not negative): equal ends, flat between
+        self.integral[a] == self.integral[b]
+    }
+
     /// RGB (not premultiplied) and opacity of a segment from a sample of value
     /// `front` to one of value `back`, `ratio` reference steps long.
     #[inline]

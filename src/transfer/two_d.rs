@@ -191,6 +191,30 @@ impl Table2D {
         (self.nv, self.ng)
     }
 
+    /// The largest opacity of each value entry over every gradient magnitude, in order
+    /// of value.
+    pub fn max_alpha_per_value(&self) -> Vec<f32> {
+        (0..self.nv)
+            .map(|i| {
+                (0..self.ng)
+                    .map(|j| self.entries[j * self.nv + i][3])
+                    .fold(0.0, f32::max)
+            })
+            .collect()
+    }
+
+    /// The table with every entry's opacity replaced by `f(opacity)` (colours kept).
+    pub fn map_alpha(&self, f: impl Fn(f32) -> f32) -> Table2D {
+        Table2D {
+            entries: self
+                .entries
+                .iter()
+                .map(|&[r, g, b, a]| [r, g, b, f(a)])
+                .collect(),
+            ..*self
+        }
+    }
+
     /// Memory held by the entries, in bytes.
     pub fn byte_size(&self) -> usize {
         std::mem::size_of_val(self.entries.as_slice())

@@ -111,6 +111,15 @@ impl ScalarType {
         })
     }
 
+    /// Entries of the normalisation table of this type (see [`Voxel::LUT_SIZE`]).
+    pub fn lut_size(self) -> usize {
+        match self {
+            ScalarType::Int8 | ScalarType::Uint8 => 256,
+            ScalarType::Int16 | ScalarType::Uint16 => 65536,
+            _ => 0,
+        }
+    }
+
     /// True for the two floating-point types.
     pub fn is_float(self) -> bool {
         matches!(self, ScalarType::Float32 | ScalarType::Float64)
@@ -123,9 +132,16 @@ impl fmt::Display for ScalarType {
     }
 }
 
+mod sealed {
+    /// Only this module's primitive types are voxels: samplers rely on their
+    /// contract (every bit pattern valid, [`super::Voxel::lut_index`] in range).
+    pub trait Sealed {}
+}
+
 /// A voxel element type: converts to `f64` exactly where the type allows, and
-/// decodes itself from bytes of either endianness.
-pub trait Voxel: Copy + Send + Sync + 'static {
+/// decodes itself from bytes of either endianness. Implemented for the ten
+/// primitive number types of NRRD only (sealed).
+pub trait Voxel: sealed::Sealed + Copy + Send + Sync + 'static {
     /// The matching [`ScalarType`].
     const TYPE: ScalarType;
     /// The value as `f64` (exact for every type but 64-bit integers beyond 2^53).
@@ -138,7 +154,7 @@ pub trait Voxel: Copy + Send + Sync + 'static {
     /// 8- and 16-bit types (so a normalisation can be one table load), 0 otherwise.
     const LUT_SIZE: usize = 0;
     /// The value's position in a table of `LUT_SIZE` entries, in increasing order
-    /// of value (only called when `LUT_SIZE > 0`).
+    /// of value (only called when `LUT_SIZE > 0`); always below `LUT_SIZE`.
     #[inline(always)]
     fn lut_index(self) -> usize {
         0
@@ -154,6 +170,7 @@ pub trait Voxel: Copy + Send + Sync + 'static {
 /// lookup-table methods for 8- and 16-bit types, indexing through the wider `$wide`.
 macro_rules! impl_voxel {
     ($t:ty, $st:expr, $round:expr $(, lut $wide:ty)?) => {
+        impl sealed::Sealed for $t {}
         impl Voxel for $t {
             const TYPE: ScalarType = $st;
             // `$wide` is twice as wide as `$t`: 2^(bits of $t) entries
@@ -213,6 +230,18 @@ pub struct Voxels<'a, T> {
     _type: std::marker::PhantomData<T>,
 }
 
+impl<'a, T: Voxel> From<&'a [T]> for Voxels<'a, T> {
+    fn from(values: &'a [T]) -> Self {
+        Voxels::from_slice(values)
+    }
+}
+
+impl<'a, T: Voxel> From<&'a Vec<T>> for Voxels<'a, T> {
+    fn from(values: &'a Vec<T>) -> Self {
+        Voxels::from_slice(values)
+    }
+}
+
 impl<'a, T: Voxel> Voxels<'a, T> {
     /// The voxels in `bytes` (native byte order; `bytes.len()` a multiple of the
     /// element size, any alignment).
@@ -263,26 +292,62 @@ impl<'a, T: Voxel> Voxels<'a, T> {
         }
     }
 
-    /// Voxels `base` and `base + offsets[..]`, with one bounds check: `offsets` must
-    /// be ascending, so the last one is the largest.
+    /// The eight corners of a trilinear cell, with one bounds check: voxels `base`,
+    /// `+ dx`, `+ dy`, `+ dx + dy`, `+ dz`, `+ dz + dx`, `+ dz + dy`, `+ dz + dy + dx`
+    /// (corner `(a, b, c)` at index `a + 2 b + 4 c`).
     #[inline(always)]
-    pub fn get_many<const N: usize>(&self, base: usize, offsets: [usize; N]) -> [T; N] {
-        let last = base + offsets[N - 1];
+    pub fn corners(&self, base: usize, dx: usize, dy: usize, dz: usize) -> [T; 8] {
+        let last = base + dx + dy + dz;
         assert!(last < self.len, "voxel index {last} out of {}", self.len);
-        debug_assert!(offsets.windows(2).all(|w| w[0] <= w[1]));
-        // SAFETY: every index is at most `last < len` (ascending offsets), see `get`.
-        offsets.map(|o| unsafe {
-            self.bytes
-                .as_ptr()
-                .add((base + o) * std::mem::size_of::<T>())
-                .cast::<T>()
-                .read_unaligned()
-        })
+        let p = self.bytes.as_ptr();
+        let size = std::mem::size_of::<T>();
+        // SAFETY: every index is at most `last < len`, see `get`.
+        let at = |i: usize| unsafe { p.add(i * size).cast::<T>().read_unaligned() };
+        [
+            at(base),
+            at(base + dx),
+            at(base + dy),
+            at(base + dy + dx),
+            at(base + dz),
+            at(base + dz + dx),
+            at(base + dz + dy),
+            at(last),
+        ]
+    }
+
+    /// The same bytes read as another type of the same size (the raw bits of
+    /// signed 8- and 16-bit voxels as unsigned ones, for tables indexed by bits).
+    pub fn reinterpret<U: Voxel>(self) -> Voxels<'a, U> {
+        assert_eq!(
+            std::mem::size_of::<T>(),
+            std::mem::size_of::<U>(),
+            "same element size"
+        );
+        Voxels {
+            bytes: self.bytes,
+            len: self.len,
+            _type: std::marker::PhantomData,
+        }
+    }
+
+    /// The `len` voxels from index `start` (panics when they are not all inside).
+    pub fn slice(&self, start: usize, len: usize) -> Voxels<'a, T> {
+        let size = std::mem::size_of::<T>();
+        Voxels {
+            bytes: &self.bytes[start * size..(start + len) * size],
+            len,
+            _type: std::marker::PhantomData,
+        }
     }
 
     /// Every voxel, in order.
-    pub fn iter(&self) -> impl Iterator<Item = T> + '_ {
-        (0..self.len).map(|i| self.get(i))
+    pub fn iter(&self) -> impl Iterator<Item = T> + 'a {
+        let size = std::mem::size_of::<T>();
+        self.bytes.chunks_exact(size).map(|c| {
+            // SAFETY: `c` holds `size_of::<T>()` bytes; every bit pattern is a
+            // valid `T`; `read_unaligned` has no alignment requirement.
+            unsafe { c.as_ptr().cast::<T>().read_unaligned() }
+        })
     }
 }
 

@@ -2,112 +2,368 @@
 //! "Emission-absorption and compositing"). Each segment between two sample
 //! positions is represented by the field at its midpoint; its opacity is corrected
 //! from the transfer function's reference step to the segment's own length, so the
-//! image converges as the step shrinks. Colour and opacity accumulate in f64: with
-//! tiny opacities and tiny steps (1e-7 per voxel at 1e-3 voxel) each sample adds
-//! hundreds of f32 ulps' worth, and f32 rounding would drift as the step shrinks.
+//! image converges as the step shrinks (whole steps read a table whose opacities are
+//! corrected once for the pass's step; the shorter first and last segments are
+//! corrected one by one). Colour and opacity accumulate in f64: with tiny opacities
+//! and tiny steps (1e-7 per voxel at 1e-3 voxel) each sample adds hundreds of f32
+//! ulps' worth, and f32 rounding would drift as the step shrinks.
 //!
 //! Pre-integrated passes (`preintegrated = true`) instead sample the field at the
 //! march positions and take each segment's colour and opacity from the table of
 //! segment integrals over (front value, back value) ([`Preintegrated`]; Engel et al.
 //! 2001), so a thin peak of the transfer function between two samples still counts.
+//!
+//! Skipping passes over the macrocells over whose value range the transfer function
+//! is transparent (a test in O(1) from a prefix count of the table's opaque
+//! entries); a pre-integrated segment that spans the edge of a skipped cell is
+//! integrated from a sample taken there.
+
+use std::ops::ControlFlow;
 
 use glam::{DVec3, Vec3};
 
 use super::crossing::normal_from_gradient;
-use super::{March, PixelRay, TransferTable};
+use super::{drive, Consumer, Counts, Integrand, PixelRay};
+use crate::render::march::{March, Midpoints};
+use crate::render::skip::MacroGrid;
 use crate::sample::Field;
 use crate::shade::Shader;
-use crate::transfer::{correct_opacity, Preintegrated};
+use crate::transfer::{correct_opacity, Preintegrated, Table1D, Table2D};
 
-pub struct Params<'a> {
-    pub table: TransferTable<'a>,
-    pub shader: Option<&'a Shader>,
-    pub reference_step: f64,
-    pub early_stop: f32,
-    pub voxel_length: f64,
-    pub preintegrated: Option<&'a Preintegrated>,
+/// A transfer-function table.
+#[derive(Clone, Debug)]
+pub enum CompositeTable {
+    /// Over the normalised value.
+    OneD(Table1D),
+    /// Over (value, gradient magnitude per voxel of the smallest spacing).
+    TwoD(Table2D),
 }
 
-pub fn trace<F: Field>(march: &March, field: &F, ray: &PixelRay, p: Params) -> ([f32; 4], u64) {
-    if let Some(pre) = p.preintegrated {
-        return trace_preintegrated(march, field, ray, &p, pre);
-    }
-    let n = march.len();
-    let mut acc = FrontToBack::new(p.early_stop);
-    let mut samples = 0;
-    let to_eye = (-ray.dir).as_vec3();
-    for i in 1..n {
-        let (ta, tb) = (march.t(i - 1), march.t(i));
-        let length = tb - ta;
-        if length <= 0.0 {
-            continue;
+impl CompositeTable {
+    /// The table with opacities corrected for segments of `ratio` reference steps.
+    fn corrected(&self, ratio: f64) -> CompositeTable {
+        let c = |a: f32| correct_opacity(a, ratio as f32);
+        match self {
+            CompositeTable::OneD(t) => CompositeTable::OneD(t.map_alpha(c)),
+            CompositeTable::TwoD(t) => CompositeTable::TwoD(t.map_alpha(c)),
         }
-        let t = 0.5 * (ta + tb);
-        let pos = ray.index.at(t);
-        let v = field.value(pos);
-        samples += 1;
-        let mut grad = None;
-        let rgba = match p.table {
-            TransferTable::OneD(tab) => tab.lookup(v),
-            TransferTable::TwoD(tab) => {
-                let g = field.gradient(pos);
-                grad = Some(g);
-                tab.lookup(v, (g.length() * p.voxel_length) as f32)
+    }
+
+    /// For each entry along the value axis, whether any entry there is not
+    /// transparent.
+    fn opaque_entries(&self) -> Vec<bool> {
+        match self {
+            CompositeTable::OneD(t) => t.alphas().map(|a| a > 0.0).collect(),
+            CompositeTable::TwoD(t) => t
+                .max_alpha_per_value()
+                .into_iter()
+                .map(|a| a > 0.0)
+                .collect(),
+        }
+    }
+
+    /// Memory held by the table, in bytes.
+    pub fn byte_size(&self) -> usize {
+        match self {
+            CompositeTable::OneD(t) => t.byte_size(),
+            CompositeTable::TwoD(t) => t.byte_size(),
+        }
+    }
+}
+
+/// Front-to-back compositing through a transfer function.
+#[derive(Clone, Debug)]
+pub struct Composite {
+    table: CompositeTable,
+    /// `table` with opacities corrected for one whole step.
+    full_step: CompositeTable,
+    shader: Option<Shader>,
+    reference_step: f64,
+    early_stop: f32,
+    voxel_length: f64,
+    preintegrated: Option<Preintegrated>,
+    /// Per macrocell of the pass's grid: true where the transfer function is
+    /// transparent over the cell's values.
+    transparent: Vec<bool>,
+}
+
+impl Composite {
+    /// Compositing through `table` at step `dt` (world units) with the transfer
+    /// function's alpha defined for `reference_step`; `voxel_length` expresses
+    /// gradient magnitudes per voxel for 2D tables; `preintegrated` replaces the
+    /// midpoint samples by pre-integrated segments (1D tables).
+    pub fn new(
+        table: CompositeTable,
+        dt: f64,
+        reference_step: f64,
+        shader: Option<Shader>,
+        early_stop: f32,
+        voxel_length: f64,
+        preintegrated: Option<Preintegrated>,
+    ) -> Composite {
+        Composite {
+            full_step: table.corrected(dt / reference_step),
+            table,
+            shader,
+            reference_step,
+            early_stop,
+            voxel_length,
+            preintegrated,
+            transparent: Vec::new(),
+        }
+    }
+
+    /// Marks the macrocells of `grid` over whose values the transfer function is
+    /// transparent (found in O(1) per cell from a prefix count of the table's
+    /// entries that are not).
+    pub fn classify(&mut self, grid: &MacroGrid) {
+        let opaque = self.table.opaque_entries();
+        let last = opaque.len() - 1;
+        let mut prefix = Vec::with_capacity(opaque.len() + 1);
+        prefix.push(0u32);
+        for (i, &o) in opaque.iter().enumerate() {
+            prefix.push(prefix[i] + u32::from(o));
+        }
+        // a lookup of v reads the entries around v * last: one entry more on each
+        // side covers the f32 rounding of that product
+        let entry = |v: f32| (v.clamp(0.0, 1.0) * last as f32) as usize;
+        self.transparent = (0..grid.len())
+            .map(|m| {
+                let [lo, hi] = grid.range(m);
+                let a = entry(lo).saturating_sub(1);
+                let b = (entry(hi) + 2).min(last);
+                let table_transparent = prefix[b + 1] == prefix[a];
+                match &self.preintegrated {
+                    Some(p) => p.transparent(f64::from(lo), f64::from(hi)),
+                    None => table_transparent,
+                }
+            })
+            .collect();
+    }
+
+    /// Memory held by the tables, in bytes.
+    pub fn byte_size(&self) -> usize {
+        self.table.byte_size()
+            + self.full_step.byte_size()
+            + self.preintegrated.as_ref().map_or(0, |p| p.byte_size())
+            + self.transparent.len()
+    }
+
+    /// RGBA of value `v` at `p` (index space; read for the gradient magnitude of 2D
+    /// tables), with the gradient when one was computed.
+    #[inline(always)]
+    fn lookup<F: Field>(
+        &self,
+        table: &CompositeTable,
+        field: &F,
+        p: DVec3,
+        v: f32,
+    ) -> ([f32; 4], Option<DVec3>) {
+        match table {
+            CompositeTable::OneD(t) => (t.lookup(v), None),
+            CompositeTable::TwoD(t) => {
+                let g = field.gradient(p);
+                (
+                    t.lookup(v, (g.length() * self.voxel_length) as f32),
+                    Some(g),
+                )
             }
+        }
+    }
+}
+
+impl Integrand for Composite {
+    fn channels(&self) -> usize {
+        4
+    }
+
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts) {
+        let to_eye = (-ray.dir).as_vec3();
+        let nominal = march.len() as u64;
+        if let Some(pre) = &self.preintegrated {
+            let mut c = Segments {
+                pass: self,
+                pre,
+                field,
+                ray,
+                march,
+                acc: FrontToBack::new(self.early_stop),
+                prev: None,
+                extra: 0,
+                to_eye,
+            };
+            let taken = drive(march, field, ray, grid, &mut c);
+            let counts = Counts {
+                taken: taken + c.extra,
+                nominal,
+            };
+            return (c.acc.finish(), counts);
+        }
+        let mut c = Midpoint {
+            pass: self,
+            field,
+            ray,
+            march,
+            acc: FrontToBack::new(self.early_stop),
+            to_eye,
         };
-        let a = correct_opacity(rgba[3], (length / p.reference_step) as f32);
+        let taken = drive(&Midpoints(march), field, ray, grid, &mut c);
+        (c.acc.finish(), Counts { taken, nominal })
+    }
+}
+
+/// Compositing of the segments' midpoint samples.
+struct Midpoint<'a, F: Field> {
+    pass: &'a Composite,
+    field: &'a F,
+    ray: &'a PixelRay,
+    march: &'a March,
+    acc: FrontToBack,
+    to_eye: Vec3,
+}
+
+impl<F: Field> Consumer for Midpoint<'_, F> {
+    #[inline(always)]
+    fn skippable(&self, cell: usize, _range: [f32; 2]) -> bool {
+        self.pass.transparent.get(cell).copied().unwrap_or(false)
+    }
+
+    #[inline(always)]
+    fn skip(&mut self, _i: usize, _j: usize) -> ControlFlow<()> {
+        ControlFlow::Continue(())
+    }
+
+    /// Midpoint `i` is the middle of the segment from sample `i` to sample `i + 1`.
+    #[inline(always)]
+    fn take(&mut self, i: usize, t: f64, v: f32) -> ControlFlow<()> {
+        let p = self.pass;
+        let length = self.march.t(i + 1) - self.march.t(i);
+        if length <= 0.0 {
+            return ControlFlow::Continue(());
+        }
+        let full = self.march.is_full_step(i + 1);
+        let pos = self.ray.index.at(t);
+        let table = if full { &p.full_step } else { &p.table };
+        let (rgba, grad) = p.lookup(table, self.field, pos, v);
+        let a = if full {
+            rgba[3]
+        } else {
+            correct_opacity(rgba[3], (length / p.reference_step) as f32)
+        };
         if a <= 0.0 {
-            continue;
+            return ControlFlow::Continue(());
         }
         let base = Vec3::new(rgba[0], rgba[1], rgba[2]);
-        let c = shade(p.shader, field, ray, t, grad, base, to_eye);
-        if acc.add(c, a) {
-            break;
+        let c = shade(
+            p.shader.as_ref(),
+            self.field,
+            self.ray,
+            t,
+            grad,
+            base,
+            self.to_eye,
+        );
+        if self.acc.add(c, a) {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
         }
     }
-    (acc.finish(), samples)
 }
 
-/// Front-to-back compositing of pre-integrated segments between consecutive samples.
-fn trace_preintegrated<F: Field>(
-    march: &March,
-    field: &F,
-    ray: &PixelRay,
-    p: &Params,
-    pre: &Preintegrated,
-) -> ([f32; 4], u64) {
-    let n = march.len();
-    let mut acc = FrontToBack::new(p.early_stop);
-    let to_eye = (-ray.dir).as_vec3();
-    let mut t_prev = march.t(0);
-    let mut v_prev = field.value(ray.index.at(t_prev));
-    let mut samples = 1;
-    for i in 1..n {
-        let t = march.t(i);
+/// Compositing of pre-integrated segments between consecutive samples.
+struct Segments<'a, F: Field> {
+    pass: &'a Composite,
+    pre: &'a Preintegrated,
+    field: &'a F,
+    ray: &'a PixelRay,
+    march: &'a March,
+    acc: FrontToBack,
+    /// The previous sample, unless it was passed over.
+    prev: Option<(f64, f32)>,
+    extra: u64,
+    to_eye: Vec3,
+}
+
+impl<F: Field> Segments<'_, F> {
+    /// The sample at march position `i`, taken outside the march's loop.
+    fn sample_at(&mut self, i: usize) -> (f64, f32) {
+        let t = self.march.t(i);
+        self.extra += 1;
+        (t, self.field.value(self.ray.index.at(t)))
+    }
+
+    /// Composites the segment from `prev` to `(t, v)`; `Break` once opaque.
+    #[inline(always)]
+    fn segment(&mut self, (t_prev, v_prev): (f64, f32), t: f64, v: f32) -> ControlFlow<()> {
         let length = t - t_prev;
         if length <= 0.0 {
-            continue;
+            return ControlFlow::Continue(());
         }
-        let v = field.value(ray.index.at(t));
-        samples += 1;
-        let (rgb, a) = pre.segment(v_prev, v, length / p.reference_step);
-        let t_mid = 0.5 * (t_prev + t);
-        t_prev = t;
-        v_prev = v;
+        let p = self.pass;
+        let (rgb, a) = self.pre.segment(v_prev, v, length / p.reference_step);
         if a <= 0.0 {
-            continue;
+            return ControlFlow::Continue(());
         }
+        let t_mid = 0.5 * (t_prev + t);
         let base = Vec3::from_array(rgb);
-        let c = shade(p.shader, field, ray, t_mid, None, base, to_eye);
-        if acc.add(c, a) {
-            break;
+        let c = shade(
+            p.shader.as_ref(),
+            self.field,
+            self.ray,
+            t_mid,
+            None,
+            base,
+            self.to_eye,
+        );
+        if self.acc.add(c, a) {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
         }
     }
-    (acc.finish(), samples)
+}
+
+impl<F: Field> Consumer for Segments<'_, F> {
+    #[inline(always)]
+    fn skippable(&self, cell: usize, _range: [f32; 2]) -> bool {
+        self.pass.transparent.get(cell).copied().unwrap_or(false)
+    }
+
+    /// The segments between samples inside transparent cells are transparent; the
+    /// one entering the gap is integrated here, the one leaving it when the next
+    /// sample is taken.
+    fn skip(&mut self, i: usize, _j: usize) -> ControlFlow<()> {
+        if let Some(prev) = self.prev.take() {
+            let (t, v) = self.sample_at(i);
+            self.segment(prev, t, v)?;
+        }
+        ControlFlow::Continue(())
+    }
+
+    #[inline(always)]
+    fn take(&mut self, i: usize, t: f64, v: f32) -> ControlFlow<()> {
+        if i > 0 {
+            let prev = match self.prev {
+                Some(prev) => prev,
+                None => self.sample_at(i - 1),
+            };
+            self.segment(prev, t, v)?;
+        }
+        self.prev = Some((t, v));
+        ControlFlow::Continue(())
+    }
 }
 
 /// The colour of a sample: the transfer function's colour `base`, shaded where the
 /// pass shades (with the gradient already computed for a 2D transfer function, if any).
+#[inline(always)]
 fn shade<F: Field>(
     shader: Option<&Shader>,
     field: &F,
@@ -146,7 +402,7 @@ impl FrontToBack {
     }
 
     /// Adds a sample of colour `c` and opacity `a`; true once the ray may stop.
-    #[inline]
+    #[inline(always)]
     fn add(&mut self, c: Vec3, a: f32) -> bool {
         let w = (1.0 - self.alpha) * f64::from(a);
         self.color += c.as_dvec3() * w;

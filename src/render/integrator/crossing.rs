@@ -2,39 +2,119 @@
 //! REFERENCE.md "Render modes"). The crossing is bracketed between two samples
 //! and refined on the interpolant (Illinois false position, which also converges on
 //! the jumps of nearest-neighbour reconstruction), not snapped to a sample.
+//! Skipping passes over the macrocells that cannot reach the threshold; the sample
+//! before the first one that does is then taken again to bracket the crossing.
+
+use std::ops::ControlFlow;
 
 use glam::{DVec3, Vec3};
 
 use super::root::illinois;
-use super::{March, PixelRay};
+use super::{drive, Consumer, Counts, Integrand, PixelRay};
+use crate::render::march::March;
+use crate::render::skip::MacroGrid;
 use crate::sample::Field;
 use crate::shade::Shader;
 
-/// Finds the first `t` where the field reaches `level`; returns `(t, samples)`.
-fn first_crossing(march: &March, value: &impl Fn(f64) -> f32, level: f32) -> (Option<f64>, u64) {
-    let n = march.len();
-    let mut t_prev = march.t(0);
-    let mut f_prev = value(t_prev);
-    if f_prev >= level {
-        return (Some(t_prev), 1);
+/// Depth coding: the distance from the depth reference to the first crossing of
+/// `threshold` (NaN if none).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Depth {
+    /// Normalised value.
+    pub threshold: f32,
+}
+
+/// Shaded first crossing of `iso`: RGBA with alpha 1 at a hit, transparent
+/// otherwise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    /// Normalised value.
+    pub iso: f32,
+    /// Reflection model, material and light.
+    pub shader: Shader,
+}
+
+/// The search for the first sample at or above `level`.
+struct FirstCrossing<'a, F: Field> {
+    field: &'a F,
+    ray: &'a PixelRay,
+    march: &'a March,
+    level: f32,
+    /// The previous sample, unless it was passed over.
+    prev: Option<(f64, f32)>,
+    hit: Option<f64>,
+    extra: u64,
+}
+
+impl<F: Field> Consumer for FirstCrossing<'_, F> {
+    #[inline(always)]
+    fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
+        range[1] < self.level
     }
-    for i in 1..n {
-        let t = march.t(i);
-        let f = value(t);
-        if f >= level {
-            let (t_hit, extra) = refine(value, level, (t_prev, f_prev), (t, f));
-            return (Some(t_hit), i as u64 + 1 + extra);
+
+    #[inline(always)]
+    fn skip(&mut self, _i: usize, _j: usize) -> ControlFlow<()> {
+        self.prev = None;
+        ControlFlow::Continue(())
+    }
+
+    #[inline(always)]
+    fn take(&mut self, i: usize, t: f64, f: f32) -> ControlFlow<()> {
+        if f >= self.level {
+            if i == 0 {
+                self.hit = Some(t);
+                return ControlFlow::Break(());
+            }
+            let prev = self.prev.unwrap_or_else(|| {
+                let tp = self.march.t(i - 1);
+                self.extra += 1;
+                (tp, self.field.value(self.ray.index.at(tp)))
+            });
+            let (t_hit, extra) = refine(self.field, self.ray, self.level, prev, (t, f));
+            self.extra += extra;
+            self.hit = Some(t_hit);
+            return ControlFlow::Break(());
         }
-        t_prev = t;
-        f_prev = f;
+        self.prev = Some((t, f));
+        ControlFlow::Continue(())
     }
-    (None, n as u64)
+}
+
+/// Finds the first `t` where the field reaches `level`.
+fn first_crossing<F: Field>(
+    field: &F,
+    ray: &PixelRay,
+    march: &March,
+    grid: Option<&MacroGrid>,
+    level: f32,
+) -> (Option<f64>, Counts) {
+    let mut c = FirstCrossing {
+        field,
+        ray,
+        march,
+        level,
+        prev: None,
+        hit: None,
+        extra: 0,
+    };
+    let taken = drive(march, field, ray, grid, &mut c);
+    let counts = Counts {
+        taken: taken + c.extra,
+        nominal: march.len() as u64,
+    };
+    (c.hit, counts)
 }
 
 /// Refines the crossing of `level` between samples `a` and `b` (`f(a) < level <=
 /// f(b)`) to 1e-7 of their distance. Returns it and the extra samples taken.
-fn refine(value: &impl Fn(f64) -> f32, level: f32, a: (f64, f32), b: (f64, f32)) -> (f64, u64) {
-    let g = |t: f64| (value(t) - level) as f64;
+fn refine<F: Field>(
+    field: &F,
+    ray: &PixelRay,
+    level: f32,
+    a: (f64, f32),
+    b: (f64, f32),
+) -> (f64, u64) {
+    let g = |t: f64| (field.value(ray.index.at(t)) - level) as f64;
     let tol = (b.0 - a.0) * 1e-7;
     illinois(
         g,
@@ -45,16 +125,44 @@ fn refine(value: &impl Fn(f64) -> f32, level: f32, a: (f64, f32), b: (f64, f32))
     )
 }
 
-/// Depth coding: distance from the depth reference to the first crossing (NaN if none).
-pub fn depth(
-    march: &March,
-    value: impl Fn(f64) -> f32,
-    threshold: f32,
-    ray: &PixelRay,
-) -> ([f32; 4], u64) {
-    let (hit, n) = first_crossing(march, &value, threshold);
-    let d = hit.map_or(f32::NAN, |t| (t - ray.t_depth_ref) as f32);
-    ([d, 0.0, 0.0, 0.0], n)
+impl Integrand for Depth {
+    fn channels(&self) -> usize {
+        1
+    }
+
+    #[inline]
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts) {
+        let (hit, counts) = first_crossing(field, ray, march, grid, self.threshold);
+        let d = hit.map_or(f32::NAN, |t| (t - ray.t_depth_ref) as f32);
+        ([d, 0.0, 0.0, 0.0], counts)
+    }
+}
+
+impl Integrand for Surface {
+    fn channels(&self) -> usize {
+        4
+    }
+
+    #[inline]
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts) {
+        let (hit, counts) = first_crossing(field, ray, march, grid, self.iso);
+        match hit {
+            Some(t) => (shade_hit(field, &self.shader, ray, t), counts),
+            None => ([0.0; 4], counts),
+        }
+    }
 }
 
 /// The unit surface normal from a world gradient: `-grad / |grad|` (the object is
@@ -67,20 +175,6 @@ pub fn normal_from_gradient(grad: DVec3, ray_dir: DVec3) -> Option<DVec3> {
     }
     let n = -grad / len;
     Some(if n.dot(ray_dir) > 0.0 { -n } else { n })
-}
-
-/// Shaded iso-surface: RGBA with alpha 1 at a hit, transparent otherwise.
-pub fn surface<F: Field>(
-    march: &March,
-    field: &F,
-    iso: f32,
-    shader: &Shader,
-    ray: &PixelRay,
-) -> ([f32; 4], u64) {
-    let value = |t: f64| field.value(ray.index.at(t));
-    let (hit, n) = first_crossing(march, &value, iso);
-    let Some(t) = hit else { return ([0.0; 4], n) };
-    (shade_hit(field, shader, ray, t), n)
 }
 
 /// The shaded colour of an iso-surface hit at `t` (white, alpha 1), with the
@@ -99,21 +193,51 @@ pub fn shade_hit<F: Field>(field: &F, shader: &Shader, ray: &PixelRay, t: f64) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::ray::IndexRay;
+
+    /// `f(x)` along x.
+    struct Along<G: Fn(f64) -> f32 + Sync>(G);
+    impl<G: Fn(f64) -> f32 + Sync> Field for Along<G> {
+        fn sizes(&self) -> [usize; 3] {
+            [11, 1, 1]
+        }
+        fn value(&self, p: DVec3) -> f32 {
+            (self.0)(p.x)
+        }
+        fn gradient(&self, _p: DVec3) -> DVec3 {
+            DVec3::ZERO
+        }
+        fn cell_corners(&self, _c: [usize; 3]) -> [f32; 8] {
+            [0.0; 8]
+        }
+    }
+
+    fn crossing(f: impl Fn(f64) -> f32 + Sync, level: f32) -> Option<f64> {
+        let ray = PixelRay {
+            origin: DVec3::ZERO,
+            dir: DVec3::X,
+            index: IndexRay {
+                o: DVec3::ZERO,
+                d: DVec3::X,
+            },
+            t_enter: 0.0,
+            t_exit: 10.0,
+            t_depth_ref: 0.0,
+        };
+        let m = March::new(0.0, 10.0, 1.0);
+        first_crossing(&Along(f), &ray, &m, None, level).0
+    }
 
     #[test]
     fn refines_between_samples() {
         // f(t) = t / 10 crosses 0.437 at t = 4.37, between samples 4 and 5
-        let m = March::new(0.0, 10.0, 1.0);
-        let f = |t: f64| (t / 10.0) as f32;
-        let (t, _) = first_crossing(&m, &f, 0.437);
+        let t = crossing(|t| (t / 10.0) as f32, 0.437);
         assert!((t.unwrap() - 4.37).abs() < 1e-5);
     }
 
     #[test]
     fn finds_a_jump() {
-        let m = March::new(0.0, 10.0, 1.0);
-        let f = |t: f64| if t >= 3.3 { 1.0 } else { 0.0 };
-        let (t, _) = first_crossing(&m, &f, 0.5);
+        let t = crossing(|t| if t >= 3.3 { 1.0 } else { 0.0 }, 0.5);
         assert!((t.unwrap() - 3.3).abs() < 1e-5);
     }
 

@@ -30,7 +30,9 @@ use std::ops::ControlFlow;
 use super::crossing::shade_hit;
 use super::root::illinois;
 use super::xray::finish;
-use super::PixelRay;
+use super::{Counts, Integrand, PixelRay};
+use crate::render::march::March;
+use crate::render::skip::MacroGrid;
 use crate::sample::Field;
 use crate::scene::XrayOutput;
 use crate::shade::Shader;
@@ -247,15 +249,25 @@ impl CompensatedSum {
     }
 }
 
-/// Walks the ray's clipped interval cell by cell and calls `visit` with the
-/// interpolant on each segment of positive length, in order, until it breaks.
-/// Returns the number of segments visited.
-pub fn walk<F: Field>(
-    field: &F,
+/// One voxel cell on a ray: the cell and the ray's parameter interval inside it.
+#[derive(Clone, Copy, Debug)]
+pub struct CellSpan {
+    /// The cell (from voxel `c` to `c + 1` on each axis).
+    pub c: [usize; 3],
+    /// Entry into the cell.
+    pub ta: f64,
+    /// Exit from the cell.
+    pub tb: f64,
+}
+
+/// Walks the ray's clipped interval cell by cell and calls `visit` with each cell
+/// span of positive length, in order, until it breaks. Returns the number of cell
+/// spans on the ray up to the break.
+pub fn walk(
+    n: [usize; 3],
     ray: &PixelRay,
-    mut visit: impl FnMut(&Segment) -> ControlFlow<()>,
+    mut visit: impl FnMut(&CellSpan) -> ControlFlow<()>,
 ) -> u64 {
-    let n = field.sizes();
     let (o, d) = (ray.index.o.to_array(), ray.index.d.to_array());
     let (t_enter, t_exit) = (ray.t_enter, ray.t_exit);
     if !(t_enter.is_finite() && t_exit.is_finite()) || t_exit <= t_enter {
@@ -292,7 +304,12 @@ pub fn walk<F: Field>(
         let tb = t_next[a].min(t_exit);
         if tb > t {
             count += 1;
-            if visit(&segment(field, n, o, d, t, tb)).is_break() {
+            let span = CellSpan {
+                c: cell_of(n, o, d, 0.5 * (t + tb)),
+                ta: t,
+                tb,
+            };
+            if visit(&span).is_break() {
                 break;
             }
             t = tb;
@@ -306,115 +323,204 @@ pub fn walk<F: Field>(
     count
 }
 
-/// The interpolant on `[ta, tb]`, in the cell containing the midpoint.
+/// The cell containing the point at `t` (clamped to the grid).
 #[inline]
-fn segment<F: Field>(
-    field: &F,
-    n: [usize; 3],
-    o: [f64; 3],
-    d: [f64; 3],
-    ta: f64,
-    tb: f64,
-) -> Segment {
-    let mid = 0.5 * (ta + tb);
-    let mut cell = [0usize; 3];
+fn cell_of(n: [usize; 3], o: [f64; 3], d: [f64; 3], t: f64) -> [usize; 3] {
+    std::array::from_fn(|a| {
+        if n[a] < 2 {
+            return 0; // constant along a single-voxel axis
+        }
+        let p = o[a] + t * d[a];
+        if p > 0.0 {
+            (p.floor() as usize).min(n[a] - 2)
+        } else {
+            0
+        }
+    })
+}
+
+/// The interpolant on a cell span, in its cell.
+#[inline]
+fn segment<F: Field>(field: &F, ray: &PixelRay, span: &CellSpan) -> Segment {
+    let n = field.sizes();
+    let (o, d) = (ray.index.o.to_array(), ray.index.d.to_array());
     let mut u0 = [0.0f64; 3];
     let mut du = [0.0f64; 3];
     for a in 0..3 {
         if n[a] < 2 {
             continue; // constant along a single-voxel axis
         }
-        let p_mid = o[a] + mid * d[a];
-        let c = if p_mid > 0.0 {
-            (p_mid.floor() as usize).min(n[a] - 2)
-        } else {
-            0
-        };
-        cell[a] = c;
-        u0[a] = o[a] + ta * d[a] - c as f64;
+        u0[a] = o[a] + span.ta * d[a] - span.c[a] as f64;
         du[a] = d[a];
     }
-    Segment::from_corners(field.cell_corners(cell), u0, du, ta, tb - ta)
+    Segment::from_corners(
+        field.cell_corners(span.c),
+        u0,
+        du,
+        span.ta,
+        span.tb - span.ta,
+    )
 }
 
 /// The interpolant's value at the ray's entry (for rays of zero length, which
 /// graze an edge or a corner and have no segment).
 fn entry_value<F: Field>(field: &F, ray: &PixelRay) -> f64 {
     let (o, d) = (ray.index.o.to_array(), ray.index.d.to_array());
-    segment(field, field.sizes(), o, d, ray.t_enter, ray.t_enter).eval(0.0)
+    let span = CellSpan {
+        c: cell_of(field.sizes(), o, d, ray.t_enter),
+        ta: ray.t_enter,
+        tb: ray.t_enter,
+    };
+    segment(field, ray, &span).eval(0.0)
 }
 
-/// Integrates one ray exactly; returns the pixel value and the number of cell
-/// segments visited.
-pub fn trace<F: Field>(kernel: &Exact, field: &F, ray: &PixelRay) -> ([f32; 4], u64) {
-    match kernel {
-        Exact::Xray { output, mu } => {
-            let mut sum = CompensatedSum::default();
-            let n = walk(field, ray, |s| {
-                sum.add(s.integral());
-                ControlFlow::Continue(())
-            });
-            ([finish(sum.total(), *output, *mu), 0.0, 0.0, 0.0], n)
+/// Walks the ray's cells, passing over those whose macrocell range `skippable`
+/// says cannot matter, and calls `visit` with the interpolant of the others.
+/// Returns the cells visited and the cells on the ray.
+fn walk_segments<F: Field>(
+    field: &F,
+    ray: &PixelRay,
+    grid: Option<&MacroGrid>,
+    skippable: impl Fn([f32; 2]) -> bool,
+    mut visit: impl FnMut(&Segment) -> ControlFlow<()>,
+) -> Counts {
+    let mut taken = 0;
+    let nominal = walk(field.sizes(), ray, |span| {
+        if let Some(g) = grid {
+            if skippable(g.range(g.of_cell(span.c))) {
+                return ControlFlow::Continue(());
+            }
         }
-        Exact::Average => {
-            let mut sum = CompensatedSum::default();
-            let n = walk(field, ray, |s| {
-                sum.add(s.integral());
-                ControlFlow::Continue(())
-            });
-            let len = ray.t_exit - ray.t_enter;
-            let v = if n == 0 || len <= 0.0 {
-                entry_value(field, ray)
-            } else {
-                sum.total() / len
-            };
-            ([v as f32, 0.0, 0.0, 0.0], n)
+        taken += 1;
+        visit(&segment(field, ray, span))
+    });
+    Counts { taken, nominal }
+}
+
+impl Integrand for Exact {
+    fn channels(&self) -> usize {
+        match self {
+            Exact::Surface { .. } => 4,
+            _ => 1,
         }
-        Exact::Mip | Exact::Minip => {
-            let max = matches!(kernel, Exact::Mip);
-            let mut best: Option<f64> = None;
-            let n = walk(field, ray, |s| {
-                let e = s.extremum(max);
-                best = Some(match best {
-                    None => e,
-                    Some(b) if max => b.max(e),
-                    Some(b) => b.min(e),
-                });
-                ControlFlow::Continue(())
-            });
-            let v = best.unwrap_or_else(|| entry_value(field, ray));
-            ([v as f32, 0.0, 0.0, 0.0], n)
+    }
+
+    fn miss(&self) -> [f32; 4] {
+        match self {
+            // the line integral of nothing is zero
+            Exact::Xray { output, .. } => [finish(0.0, *output, 1.0), 0.0, 0.0, 0.0],
+            Exact::Surface { .. } => [0.0; 4],
+            _ => [f32::NAN, 0.0, 0.0, 0.0],
         }
-        Exact::Depth { threshold } => {
-            let (hit, n) = first_crossing(field, ray, *threshold);
-            let d = hit.map_or(f32::NAN, |t| (t - ray.t_depth_ref) as f32);
-            ([d, 0.0, 0.0, 0.0], n)
-        }
-        Exact::Surface { iso, shader } => {
-            let (hit, n) = first_crossing(field, ray, *iso);
-            match hit {
-                Some(t) => (shade_hit(field, shader, ray, t), n),
-                None => ([0.0; 4], n),
+    }
+
+    /// Integrates one ray exactly (the march is not used); counts cells.
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        _march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts) {
+        match self {
+            Exact::Xray { .. } | Exact::Average => {
+                let mut sum = CompensatedSum::default();
+                // all-zero cells add exact zeros
+                let counts = walk_segments(
+                    field,
+                    ray,
+                    grid,
+                    |r| r[1] <= 0.0,
+                    |s| {
+                        sum.add(s.integral());
+                        ControlFlow::Continue(())
+                    },
+                );
+                let v = match self {
+                    Exact::Xray { output, mu } => finish(sum.total(), *output, *mu),
+                    _ => {
+                        let len = ray.t_exit - ray.t_enter;
+                        (if counts.nominal == 0 || len <= 0.0 {
+                            entry_value(field, ray)
+                        } else {
+                            sum.total() / len
+                        }) as f32
+                    }
+                };
+                ([v, 0.0, 0.0, 0.0], counts)
+            }
+            Exact::Mip | Exact::Minip => {
+                let max = matches!(self, Exact::Mip);
+                let best = std::cell::Cell::new(None::<f64>);
+                // cells that cannot beat the running extremum
+                let counts = walk_segments(
+                    field,
+                    ray,
+                    grid,
+                    |r| match best.get() {
+                        Some(b) if max => f64::from(r[1]) <= b,
+                        Some(b) => f64::from(r[0]) >= b,
+                        None => false,
+                    },
+                    |s| {
+                        // the interpolant of values in [0, 1] stays in [0, 1]: what
+                        // the cubic's evaluation adds beyond is round-off
+                        let e = s.extremum(max).clamp(0.0, 1.0);
+                        best.set(Some(match best.get() {
+                            None => e,
+                            Some(b) if max => b.max(e),
+                            Some(b) => b.min(e),
+                        }));
+                        ControlFlow::Continue(())
+                    },
+                );
+                let v = best.get().unwrap_or_else(|| entry_value(field, ray));
+                ([v as f32, 0.0, 0.0, 0.0], counts)
+            }
+            Exact::Depth { threshold } => {
+                let (hit, counts) = first_crossing(field, ray, grid, *threshold);
+                let d = hit.map_or(f32::NAN, |t| (t - ray.t_depth_ref) as f32);
+                ([d, 0.0, 0.0, 0.0], counts)
+            }
+            Exact::Surface { iso, shader } => {
+                let (hit, counts) = first_crossing(field, ray, grid, *iso);
+                match hit {
+                    Some(t) => (shade_hit(field, shader, ray, t), counts),
+                    None => ([0.0; 4], counts),
+                }
             }
         }
     }
 }
 
-/// The first `t` where the interpolant reaches `level`.
-fn first_crossing<F: Field>(field: &F, ray: &PixelRay, level: f32) -> (Option<f64>, u64) {
+/// The first `t` where the interpolant reaches `level`, passing over the cells
+/// that cannot reach it.
+fn first_crossing<F: Field>(
+    field: &F,
+    ray: &PixelRay,
+    grid: Option<&MacroGrid>,
+    level: f32,
+) -> (Option<f64>, Counts) {
+    let level_f32 = level;
     let level = f64::from(level);
     let mut hit = None;
-    let n = walk(field, ray, |s| match s.first_reach(level) {
-        Some(x) => {
-            hit = Some(s.t0 + x);
-            ControlFlow::Break(())
-        }
-        None => ControlFlow::Continue(()),
-    });
-    if n == 0 && ray.t_exit >= ray.t_enter && entry_value(field, ray) >= level {
+    let counts = walk_segments(
+        field,
+        ray,
+        grid,
+        |r| r[1] < level_f32,
+        |s| match s.first_reach(level) {
+            Some(x) => {
+                hit = Some(s.t0 + x);
+                ControlFlow::Break(())
+            }
+            None => ControlFlow::Continue(()),
+        },
+    );
+    if counts.nominal == 0 && ray.t_exit >= ray.t_enter && entry_value(field, ray) >= level {
         hit = Some(ray.t_enter);
     }
-    (hit, n)
+    (hit, counts)
 }
 
 #[cfg(test)]

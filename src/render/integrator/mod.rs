@@ -1,13 +1,12 @@
-//! Per-ray integrators: one function per render mode, each a pure function of the
-//! field and the ray (no I/O, no locks, no allocation).
+//! Per-ray integrators: one type per render mode, each a pure function of the field
+//! and the ray (no I/O, no locks, no allocation), generic over the field so that the
+//! inner loop is compiled once per (voxel type, filter, mode).
 //!
-//! A ray inside the box is sampled at `t_enter`, every `dt` after it, and at
-//! `t_exit` (the last step is shorter), so the entry and exit points are always
-//! sampled and the samples cover the whole segment. With jitter, the samples
-//! after the entry are shifted by a per-pixel fraction of `dt` (the entry and exit
-//! are still sampled). Exact passes ([`Exact`], `exact.rs`) walk the cells instead
-//! of sampling. Formulas: REFERENCE.md "Render modes" and "Emission-absorption and
-//! compositing".
+//! Sampled modes are [`Consumer`]s: the one sampling loop, [`drive`], walks the
+//! ray's macrocells (when the pass skips empty space), passes over the samples of
+//! the cells the consumer says cannot change its result, and hands it the others in
+//! order. Exact passes ([`Exact`], `exact.rs`) walk the voxel cells instead.
+//! Formulas: REFERENCE.md "Render modes" and "Emission-absorption and compositing".
 
 mod composite;
 mod crossing;
@@ -16,120 +15,35 @@ mod projection;
 mod root;
 mod xray;
 
-use std::sync::Arc;
+use std::ops::ControlFlow;
 
 use glam::DVec3;
 
+pub use composite::{Composite, CompositeTable};
+pub use crossing::{Depth, Surface};
 pub use exact::Exact;
+pub use projection::{Average, Lmip, Minip, Mip};
+pub use xray::Xray;
 
-use crate::sample::Field;
-use crate::scene::XrayOutput;
-use crate::shade::Shader;
-use crate::transfer::{Preintegrated, Table1D, Table2D};
-
+use super::march::{Lattice, March};
 use super::ray::IndexRay;
+use super::skip::MacroGrid;
+use crate::sample::Field;
 
-/// A transfer-function table.
-#[derive(Clone, Copy, Debug)]
-pub enum TransferTable<'a> {
-    /// Over the normalised value.
-    OneD(&'a Table1D),
-    /// Over (value, gradient magnitude per voxel of the smallest spacing).
-    TwoD(&'a Table2D),
+/// Samples a ray took, and the samples the plain march would have taken.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Field samples actually taken (cells visited, for exact passes).
+    pub taken: u64,
+    /// Field samples of the march without skipping (cells on the ray, for exact
+    /// passes).
+    pub nominal: u64,
 }
 
-/// What a pass computes per ray and how it samples the ray.
-#[derive(Clone, Debug)]
-pub struct Kernel<'a> {
-    /// The quantity computed per ray, with everything precomputed it needs.
-    pub integrand: Integrand<'a>,
-    /// Per-pass seed of the jittered first sample; `None` = no jitter.
-    pub jitter: Option<u64>,
-}
-
-impl<'a> From<Integrand<'a>> for Kernel<'a> {
-    fn from(integrand: Integrand<'a>) -> Self {
-        Kernel {
-            integrand,
-            jitter: None,
-        }
-    }
-}
-
-/// What a pass computes per ray, with everything precomputed it needs.
-#[derive(Clone, Debug)]
-pub enum Integrand<'a> {
-    /// Line integral (trapezoid rule, accumulated in f64).
-    Xray {
-        /// Stored quantity.
-        output: XrayOutput,
-        /// Attenuation scale.
-        mu: f64,
-    },
-    /// Maximum along the ray.
-    Mip,
-    /// Minimum along the ray.
-    Minip,
-    /// Length-weighted mean along the ray.
-    Average,
-    /// First local maximum at or above `threshold` (else the maximum).
-    Lmip {
-        /// Normalised value.
-        threshold: f32,
-    },
-    /// Distance from the depth reference to the first crossing of `threshold`.
-    Depth {
-        /// Normalised value.
-        threshold: f32,
-    },
-    /// Shaded first crossing of `iso`.
-    Surface {
-        /// Normalised value.
-        iso: f32,
-        /// Reflection model, material and light.
-        shader: Shader,
-    },
-    /// Front-to-back emission-absorption.
-    Composite {
-        /// Transfer function table.
-        table: TransferTable<'a>,
-        /// Optional shading of each sample.
-        shader: Option<Shader>,
-        /// Reference step of the transfer function's alpha, world units.
-        reference_step: f64,
-        /// Stop once the accumulated opacity reaches this.
-        early_stop: f32,
-        /// World length of one voxel of the smallest spacing (to express gradient
-        /// magnitudes per voxel for 2D transfer functions).
-        voxel_length: f64,
-        /// Pre-integrated segment table (1D transfer functions only).
-        preintegrated: Option<Arc<Preintegrated>>,
-    },
-    /// Exact integration of the trilinear interpolant, cell by cell.
-    Exact(Exact),
-}
-
-impl Kernel<'_> {
-    /// Channels per pixel (1 for intensity modes, 4 for RGBA).
-    pub fn channels(&self) -> usize {
-        match &self.integrand {
-            Integrand::Surface { .. }
-            | Integrand::Composite { .. }
-            | Integrand::Exact(Exact::Surface { .. }) => 4,
-            _ => 1,
-        }
-    }
-
-    /// The pixel value where a ray misses the volume.
-    pub fn miss(&self) -> [f32; 4] {
-        match &self.integrand {
-            // the line integral of nothing is zero
-            Integrand::Xray { output, .. } | Integrand::Exact(Exact::Xray { output, .. }) => {
-                [xray::finish(0.0, *output, 1.0), 0.0, 0.0, 0.0]
-            }
-            _ if self.channels() == 4 => [0.0; 4],
-            _ => [f32::NAN, 0.0, 0.0, 0.0],
-        }
+impl std::ops::AddAssign for Counts {
+    fn add_assign(&mut self, o: Counts) {
+        self.taken += o.taken;
+        self.nominal += o.nominal;
     }
 }
 
@@ -158,67 +72,101 @@ impl PixelRay {
     }
 }
 
-/// Sample positions along `[t0, t1]`: `t0`, every `dt` (shifted back by a
-/// fraction of `dt` when jittered), and `t1`.
-#[derive(Clone, Copy, Debug)]
-pub struct March {
-    t0: f64,
-    t1: f64,
-    dt: f64,
-    /// Sample `i >= 1` sits at `t0 + (i + shift) dt`; `shift` is in `(-1, 0]`.
-    shift: f64,
-    full_steps: usize,
-    tail: bool,
+/// A render mode's computation along one ray.
+pub trait Integrand: Sync {
+    /// Channels per pixel (1 for intensity modes, 4 for RGBA).
+    fn channels(&self) -> usize;
+
+    /// The pixel value where a ray misses the volume.
+    fn miss(&self) -> [f32; 4] {
+        if self.channels() == 4 {
+            [0.0; 4]
+        } else {
+            [f32::NAN, 0.0, 0.0, 0.0]
+        }
+    }
+
+    /// Integrates one ray sampled at `march` (exact integrands ignore it), passing
+    /// over empty space with `grid` when given. Returns the pixel value and the
+    /// samples taken.
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts);
 }
 
-impl March {
-    /// The march for one ray segment.
-    pub fn new(t0: f64, t1: f64, dt: f64) -> March {
-        March::jittered(t0, t1, dt, 0.0)
-    }
+/// What a sampled integrator does with the samples of one ray, in order.
+pub trait Consumer {
+    /// Whether every sample inside macrocell `cell`, whose values lie in `range`,
+    /// can be passed over now without changing the result.
+    fn skippable(&self, cell: usize, range: [f32; 2]) -> bool;
+    /// The samples `i..j` are passed over (the consumer accounts for the gap);
+    /// `Break` ends the ray.
+    fn skip(&mut self, i: usize, j: usize) -> ControlFlow<()>;
+    /// Sample `i`, at `t`, has value `f`; `Break` ends the ray.
+    fn take(&mut self, i: usize, t: f64, f: f32) -> ControlFlow<()>;
+}
 
-    /// The march with every sample after the entry moved back by `jitter * dt`,
-    /// `jitter` in `[0, 1)` (0 = the plain march, bit for bit): the samples are
-    /// `t0`, `t0 + (1 - jitter) dt`, `t0 + (2 - jitter) dt`, ..., `t1`.
-    pub fn jittered(t0: f64, t1: f64, dt: f64, jitter: f64) -> March {
-        let shift = -jitter.clamp(0.0, 1.0 - f64::EPSILON);
-        let len = (t1 - t0).max(0.0);
-        let full_steps = (len / dt - shift).floor() as usize;
-        // a tail shorter than a millionth of a step is merged into the last sample
-        let tail = len - (full_steps as f64 + shift) * dt > 1e-6 * dt;
-        March {
-            t0,
-            t1,
-            dt,
-            shift,
-            full_steps,
-            tail,
+/// The one sampling loop: hands `consumer` the samples of `lattice` along `ray`
+/// (values of `field`), in order, passing over the samples of the macrocells it can
+/// skip when `grid` is given. Returns the number of samples taken.
+#[inline(always)]
+pub fn drive<L: Lattice, F: Field, C: Consumer>(
+    lattice: &L,
+    field: &F,
+    ray: &PixelRay,
+    grid: Option<&MacroGrid>,
+    consumer: &mut C,
+) -> u64 {
+    let n = lattice.len();
+    let index = &ray.index;
+    // takes samples `from..to`; the count taken, and whether the consumer stopped
+    let take = |from: usize, to: usize, consumer: &mut C| -> (u64, bool) {
+        for i in from..to {
+            let t = lattice.t(i);
+            if consumer.take(i, t, field.value(index.at(t))).is_break() {
+                return ((i + 1 - from) as u64, true);
+            }
         }
-    }
-
-    /// Number of sample positions.
-    pub fn len(&self) -> usize {
-        self.full_steps + 1 + usize::from(self.tail)
-    }
-
-    /// Always false: a march has at least its entry point.
-    pub fn is_empty(&self) -> bool {
-        false
-    }
-
-    /// Position `i` (`0 <= i < len()`): computed from the index, never accumulated,
-    /// so long rays do not drift.
-    #[inline(always)]
-    pub fn t(&self, i: usize) -> f64 {
-        if i > self.full_steps {
-            self.t1
+        ((to - from) as u64, false)
+    };
+    let Some(grid) = grid else {
+        return take(0, n, consumer).0;
+    };
+    let mut taken = 0u64;
+    let mut i = 0;
+    for span in grid.walk(index, ray.t_enter, ray.t_exit) {
+        let j = if span.last {
+            n
         } else {
-            // `i + 0.0` is exact, so the plain march is unchanged by the shift
-            (self.t0 + (i as f64 + self.shift) * self.dt)
-                .max(self.t0)
-                .min(self.t1)
+            lattice.first_at_or_after(span.t1).max(i)
+        };
+        if j > i {
+            if consumer.skippable(span.cell, grid.range(span.cell)) {
+                if consumer.skip(i, j).is_break() {
+                    return taken;
+                }
+            } else {
+                let (count, stopped) = take(i, j, consumer);
+                taken += count;
+                if stopped {
+                    return taken;
+                }
+            }
+            i = j;
+        }
+        if span.last {
+            break;
         }
     }
+    // a walk that ended early (non-finite parameters) leaves its samples here
+    if i < n {
+        taken += take(i, n, consumer).0;
+    }
+    taken
 }
 
 /// The jitter of one pixel's first sample, in `[0, 1)` of a step: a hash of the
@@ -245,87 +193,25 @@ fn splitmix64(x: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// Integrates one ray; `jitter` (in `[0, 1)`) moves the samples after the entry
-/// back by that fraction of `dt`. Returns the pixel value and the number of field
+/// Integrates one ray with `integrand` at step `dt`, the first sample after the
+/// entry moved back by `jitter` (in `[0, 1)`) of a step, without skipping: the
+/// value of one pixel, for tools and tests. Returns the pixel value and the
 /// samples taken (cells visited, for exact passes).
-pub fn trace<F: Field>(
-    kernel: &Kernel,
+pub fn trace<I: Integrand, F: Field>(
+    integrand: &I,
     field: &F,
     ray: &PixelRay,
     dt: f64,
     jitter: f64,
 ) -> ([f32; 4], u64) {
     let march = March::jittered(ray.t_enter, ray.t_exit, dt, jitter);
-    let value = |t: f64| field.value(ray.index.at(t));
-    match &kernel.integrand {
-        Integrand::Xray { output, mu } => xray::trace(&march, value, *output, *mu),
-        Integrand::Mip => projection::extremum(&march, value, f32::max),
-        Integrand::Minip => projection::extremum(&march, value, f32::min),
-        Integrand::Average => projection::average(&march, value),
-        Integrand::Lmip { threshold } => projection::lmip(&march, value, *threshold),
-        Integrand::Depth { threshold } => crossing::depth(&march, value, *threshold, ray),
-        Integrand::Surface { iso, shader } => crossing::surface(&march, field, *iso, shader, ray),
-        Integrand::Composite {
-            table,
-            shader,
-            reference_step,
-            early_stop,
-            voxel_length,
-            preintegrated,
-        } => composite::trace(
-            &march,
-            field,
-            ray,
-            composite::Params {
-                table: *table,
-                shader: shader.as_ref(),
-                reference_step: *reference_step,
-                early_stop: *early_stop,
-                voxel_length: *voxel_length,
-                preintegrated: preintegrated.as_deref(),
-            },
-        ),
-        Integrand::Exact(e) => exact::trace(e, field, ray),
-    }
+    let (value, counts) = integrand.trace(field, ray, &march, None);
+    (value, counts.taken)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn march_covers_the_segment() {
-        let m = March::new(1.0, 3.5, 1.0);
-        let ts: Vec<f64> = (0..m.len()).map(|i| m.t(i)).collect();
-        assert_eq!(ts, vec![1.0, 2.0, 3.0, 3.5]);
-        let m = March::new(1.0, 3.0, 1.0);
-        assert_eq!(
-            (0..m.len()).map(|i| m.t(i)).collect::<Vec<_>>(),
-            vec![1.0, 2.0, 3.0]
-        );
-        let m = March::new(2.0, 2.0, 0.5);
-        assert_eq!(m.len(), 1);
-        assert_eq!(m.t(0), 2.0);
-    }
-
-    #[test]
-    fn jittered_march_keeps_entry_and_exit() {
-        let m = March::jittered(1.0, 3.5, 1.0, 0.25);
-        let ts: Vec<f64> = (0..m.len()).map(|i| m.t(i)).collect();
-        assert_eq!(ts, vec![1.0, 1.75, 2.75, 3.5]);
-        let m = March::jittered(1.0, 3.0, 1.0, 0.5);
-        let ts: Vec<f64> = (0..m.len()).map(|i| m.t(i)).collect();
-        assert_eq!(ts, vec![1.0, 1.5, 2.5, 3.0]);
-        // zero jitter is the plain march, bit for bit
-        let (a, b) = (
-            March::new(0.1, 7.3, 0.37),
-            March::jittered(0.1, 7.3, 0.37, 0.0),
-        );
-        assert_eq!(a.len(), b.len());
-        for i in 0..a.len() {
-            assert_eq!(a.t(i).to_bits(), b.t(i).to_bits());
-        }
-    }
 
     #[test]
     fn jitter_is_a_deterministic_uniform_fraction() {
@@ -339,12 +225,5 @@ mod tests {
         let mean: f64 = (0..n).map(|k| f(k % 100, k / 100)).sum::<f64>() / n as f64;
         assert!((mean - 0.5).abs() < 0.015, "{mean}");
         assert!((0..n).all(|k| (0.0..1.0).contains(&f(k % 100, k / 100))));
-    }
-
-    #[test]
-    fn long_march_does_not_drift() {
-        let m = March::new(0.0, 1.0, 1e-6);
-        assert_eq!(m.t(m.len() - 1), 1.0);
-        assert!((m.t(500_000) - 0.5).abs() < 1e-15);
     }
 }

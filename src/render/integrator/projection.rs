@@ -1,79 +1,295 @@
 //! MIP, MinIP, average and local MIP (REFERENCE.md "Render modes").
+//!
+//! Skipping: MIP passes over macrocells whose maximum cannot beat the running
+//! maximum (MinIP symmetrically), the average over all-zero ones, and local MIP,
+//! while it looks for the first sample at or above its threshold, over those that
+//! cannot reach it (a ray that never reaches it is then answered by MIP).
 
-use super::xray::trapezoid;
-use super::March;
+use std::ops::ControlFlow;
 
-/// The extremum (`pick` = max or min) of the samples.
-pub fn extremum(
-    march: &March,
-    value: impl Fn(f64) -> f32,
-    pick: fn(f32, f32) -> f32,
-) -> ([f32; 4], u64) {
-    let n = march.len();
-    let mut best = value(march.t(0));
-    for i in 1..n {
-        best = pick(best, value(march.t(i)));
-    }
-    ([best, 0.0, 0.0, 0.0], n as u64)
+use super::xray::Trapezoid;
+use super::{drive, Consumer, Counts, Integrand, PixelRay};
+use crate::render::march::March;
+use crate::render::skip::MacroGrid;
+use crate::sample::Field;
+
+/// Maximum intensity projection.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Mip;
+
+/// Minimum intensity projection.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Minip;
+
+/// The length-weighted mean along the ray.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Average;
+
+/// The first local maximum at or above `threshold` (else the maximum).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lmip {
+    /// Normalised value.
+    pub threshold: f32,
 }
 
-/// The length-weighted mean (the trapezoid integral over the length); a ray of zero
-/// length (grazing a corner) gets its one sample.
-pub fn average(march: &March, value: impl Fn(f64) -> f32) -> ([f32; 4], u64) {
-    let n = march.len();
-    let (t0, t1) = (march.t(0), march.t(n - 1));
-    let (integral, first) = trapezoid(march, value);
-    let mean = if n == 1 || t1 <= t0 {
-        first
-    } else {
-        integral / (t1 - t0)
-    };
-    ([mean as f32, 0.0, 0.0, 0.0], n as u64)
+/// The running extremum of the samples.
+struct Extremum {
+    best: f32,
+    max: bool,
 }
 
-/// The first local maximum among samples at or above `threshold`: the last sample
-/// of the first non-decreasing run that starts at or above it. Where no sample
-/// reaches the threshold the result is the ray's maximum (as in Sato et al. 1998),
-/// so the image has no holes.
-pub fn lmip(march: &March, value: impl Fn(f64) -> f32, threshold: f32) -> ([f32; 4], u64) {
-    let n = march.len();
-    let mut max = f32::NEG_INFINITY;
-    let mut climbing: Option<f32> = None;
-    for i in 0..n {
-        let f = value(march.t(i));
-        match climbing {
-            Some(prev) if f < prev => return ([prev, 0.0, 0.0, 0.0], i as u64 + 1),
-            Some(_) => climbing = Some(f),
-            None if f >= threshold => climbing = Some(f),
-            None => max = max.max(f),
+impl Consumer for Extremum {
+    #[inline(always)]
+    fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
+        if self.max {
+            range[1] <= self.best
+        } else {
+            range[0] >= self.best
         }
     }
-    ([climbing.unwrap_or(max), 0.0, 0.0, 0.0], n as u64)
+
+    #[inline(always)]
+    fn skip(&mut self, _i: usize, _j: usize) -> ControlFlow<()> {
+        ControlFlow::Continue(())
+    }
+
+    #[inline(always)]
+    fn take(&mut self, _i: usize, _t: f64, f: f32) -> ControlFlow<()> {
+        self.best = if self.max {
+            self.best.max(f)
+        } else {
+            self.best.min(f)
+        };
+        ControlFlow::Continue(())
+    }
+}
+
+fn extremum<F: Field>(
+    field: &F,
+    ray: &PixelRay,
+    march: &March,
+    grid: Option<&MacroGrid>,
+    max: bool,
+) -> ([f32; 4], Counts) {
+    let mut e = Extremum {
+        best: if max {
+            f32::NEG_INFINITY
+        } else {
+            f32::INFINITY
+        },
+        max,
+    };
+    let taken = drive(march, field, ray, grid, &mut e);
+    let counts = Counts {
+        taken,
+        nominal: march.len() as u64,
+    };
+    ([e.best, 0.0, 0.0, 0.0], counts)
+}
+
+impl Integrand for Mip {
+    fn channels(&self) -> usize {
+        1
+    }
+
+    #[inline]
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts) {
+        extremum(field, ray, march, grid, true)
+    }
+}
+
+impl Integrand for Minip {
+    fn channels(&self) -> usize {
+        1
+    }
+
+    #[inline]
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts) {
+        extremum(field, ray, march, grid, false)
+    }
+}
+
+impl Integrand for Average {
+    fn channels(&self) -> usize {
+        1
+    }
+
+    /// The trapezoid integral over the length; a ray of zero length (grazing a
+    /// corner) gets its one sample.
+    #[inline]
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts) {
+        let mut t = Trapezoid::new(march);
+        let taken = drive(march, field, ray, grid, &mut t);
+        let n = march.len();
+        let (t0, t1) = (march.t(0), march.t(n - 1));
+        let mean = if n == 1 || t1 <= t0 {
+            t.first
+        } else {
+            t.sum / (t1 - t0)
+        };
+        let counts = Counts {
+            taken,
+            nominal: n as u64,
+        };
+        ([mean as f32, 0.0, 0.0, 0.0], counts)
+    }
+}
+
+/// Local MIP's search: the last sample of the first non-decreasing run that
+/// starts at or above the threshold.
+struct Climb {
+    threshold: f32,
+    climbing: Option<f32>,
+}
+
+impl Consumer for Climb {
+    #[inline(always)]
+    fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
+        self.climbing.is_none() && range[1] < self.threshold
+    }
+
+    #[inline(always)]
+    fn skip(&mut self, _i: usize, _j: usize) -> ControlFlow<()> {
+        ControlFlow::Continue(())
+    }
+
+    #[inline(always)]
+    fn take(&mut self, _i: usize, _t: f64, f: f32) -> ControlFlow<()> {
+        match self.climbing {
+            Some(prev) if f < prev => return ControlFlow::Break(()),
+            Some(_) => self.climbing = Some(f),
+            None if f >= self.threshold => self.climbing = Some(f),
+            None => {}
+        }
+        ControlFlow::Continue(())
+    }
+}
+
+impl Integrand for Lmip {
+    fn channels(&self) -> usize {
+        1
+    }
+
+    /// The first local maximum among samples at or above the threshold. Where no
+    /// sample reaches the threshold the result is the ray's maximum (as in Sato et
+    /// al. 1998), so the image has no holes.
+    #[inline]
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts) {
+        let mut c = Climb {
+            threshold: self.threshold,
+            climbing: None,
+        };
+        let taken = drive(march, field, ray, grid, &mut c);
+        let nominal = march.len() as u64;
+        match c.climbing {
+            Some(v) => ([v, 0.0, 0.0, 0.0], Counts { taken, nominal }),
+            None => {
+                let (v, more) = extremum(field, ray, march, grid, true);
+                let counts = Counts {
+                    taken: taken + more.taken,
+                    nominal,
+                };
+                (v, counts)
+            }
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::trace;
     use super::*;
+    use crate::render::ray::IndexRay;
+    use glam::DVec3;
 
-    fn samples(v: &'static [f32]) -> (March, impl Fn(f64) -> f32) {
-        let m = March::new(0.0, (v.len() - 1) as f64, 1.0);
-        (m, move |t: f64| v[t.round() as usize])
+    /// A field that is `v[round(x)]` along x.
+    struct Line(&'static [f32]);
+    impl Field for Line {
+        fn sizes(&self) -> [usize; 3] {
+            [self.0.len(), 1, 1]
+        }
+        fn value(&self, p: DVec3) -> f32 {
+            self.0[p.x.round() as usize]
+        }
+        fn gradient(&self, _p: DVec3) -> DVec3 {
+            DVec3::ZERO
+        }
+        fn cell_corners(&self, _c: [usize; 3]) -> [f32; 8] {
+            [0.0; 8]
+        }
+    }
+
+    fn ray(n: usize) -> PixelRay {
+        PixelRay {
+            origin: DVec3::ZERO,
+            dir: DVec3::X,
+            index: IndexRay {
+                o: DVec3::ZERO,
+                d: DVec3::X,
+            },
+            t_enter: 0.0,
+            t_exit: (n - 1) as f64,
+            t_depth_ref: 0.0,
+        }
+    }
+
+    fn run(i: impl Integrand, v: &'static [f32]) -> f32 {
+        trace(&i, &Line(v), &ray(v.len()), 1.0, 0.0).0[0]
     }
 
     #[test]
     fn lmip_picks_first_peak_above_threshold() {
-        let (m, f) = samples(&[0.1, 0.6, 0.7, 0.65, 0.9, 0.2]);
-        assert_eq!(lmip(&m, f, 0.5).0[0], 0.7);
-        let (m, f) = samples(&[0.1, 0.3, 0.2]);
-        assert_eq!(lmip(&m, f, 0.5).0[0], 0.3, "falls back to the maximum");
-        let (m, f) = samples(&[0.1, 0.6, 0.8]);
-        assert_eq!(lmip(&m, f, 0.5).0[0], 0.8, "still climbing at the exit");
+        let l = Lmip { threshold: 0.5 };
+        assert_eq!(run(l, &[0.1, 0.6, 0.7, 0.65, 0.9, 0.2]), 0.7);
+        assert_eq!(run(l, &[0.1, 0.3, 0.2]), 0.3, "falls back to the maximum");
+        assert_eq!(run(l, &[0.1, 0.6, 0.8]), 0.8, "still climbing at the exit");
     }
 
     #[test]
     fn average_is_length_weighted() {
-        let m = March::new(0.0, 1.5, 1.0); // samples at 0, 1, 1.5
-        let r = average(&m, |t| t as f32);
-        assert!((r.0[0] - 0.75).abs() < 1e-7);
+        // samples at 0, 1, 1.5 of f = x: (0.5 + 0.625) / 1.5 = 0.75
+        struct X;
+        impl Field for X {
+            fn sizes(&self) -> [usize; 3] {
+                [2, 1, 1]
+            }
+            fn value(&self, p: DVec3) -> f32 {
+                p.x as f32
+            }
+            fn gradient(&self, _p: DVec3) -> DVec3 {
+                DVec3::ZERO
+            }
+            fn cell_corners(&self, _c: [usize; 3]) -> [f32; 8] {
+                [0.0; 8]
+            }
+        }
+        let mut r = ray(2);
+        r.t_exit = 1.5;
+        let got = trace(&Average, &X, &r, 1.0, 0.0).0[0];
+        assert!((got - 0.75).abs() < 1e-7);
     }
 }

@@ -1,38 +1,108 @@
 //! X-ray / look-through (REFERENCE.md "Render modes"): the line integral of the
 //! normalised value by the trapezoid rule, accumulated in f64; Beer-Lambert for the
-//! absorbed and transmitted images.
+//! absorbed and transmitted images. Skips all-zero macrocells.
 
-use super::March;
+use std::ops::ControlFlow;
+
+use super::{drive, Consumer, Counts, Integrand, PixelRay};
+use crate::render::march::March;
+use crate::render::skip::MacroGrid;
+use crate::sample::Field;
 use crate::scene::XrayOutput;
 
-pub fn trace(
-    march: &March,
-    value: impl Fn(f64) -> f32,
-    output: XrayOutput,
-    mu: f64,
-) -> ([f32; 4], u64) {
-    let (integral, _) = trapezoid(march, value);
-    (
-        [finish(integral, output, mu), 0.0, 0.0, 0.0],
-        march.len() as u64,
-    )
+/// The line integral, as the pass stores it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Xray {
+    /// Stored quantity.
+    pub output: XrayOutput,
+    /// Attenuation scale.
+    pub mu: f64,
 }
 
-/// The trapezoid-rule integral of `value` over the march, accumulated in f64, and
-/// the value at its first sample.
-pub fn trapezoid(march: &March, value: impl Fn(f64) -> f32) -> (f64, f64) {
-    let mut sum = 0.0f64;
-    let mut t_prev = march.t(0);
-    let first = value(t_prev) as f64;
-    let mut f_prev = first;
-    for i in 1..march.len() {
-        let t = march.t(i);
-        let f = value(t) as f64;
-        sum += (t - t_prev) * (f_prev + f) * 0.5;
-        t_prev = t;
-        f_prev = f;
+impl Integrand for Xray {
+    fn channels(&self) -> usize {
+        1
     }
-    (sum, first)
+
+    fn miss(&self) -> [f32; 4] {
+        // the line integral of nothing is zero
+        [finish(0.0, self.output, 1.0), 0.0, 0.0, 0.0]
+    }
+
+    #[inline]
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts) {
+        let mut t = Trapezoid::new(march);
+        let taken = drive(march, field, ray, grid, &mut t);
+        let counts = Counts {
+            taken,
+            nominal: march.len() as u64,
+        };
+        ([finish(t.sum, self.output, self.mu), 0.0, 0.0, 0.0], counts)
+    }
+}
+
+/// The trapezoid-rule integral of the samples, accumulated in f64, and the value of
+/// the first sample. Passes over all-zero cells: their samples add exact zeros, and
+/// the trapezoids at the edges of a gap get their zero end.
+pub(super) struct Trapezoid<'a> {
+    march: &'a March,
+    pub sum: f64,
+    pub first: f64,
+    t_prev: f64,
+    f_prev: f64,
+}
+
+impl<'a> Trapezoid<'a> {
+    pub fn new(march: &'a March) -> Self {
+        Trapezoid {
+            march,
+            sum: 0.0,
+            first: 0.0,
+            t_prev: 0.0,
+            f_prev: 0.0,
+        }
+    }
+
+    #[inline(always)]
+    fn add(&mut self, i: usize, t: f64, f: f64) {
+        if i == 0 {
+            self.first = f;
+        } else {
+            self.sum += (t - self.t_prev) * (self.f_prev + f) * 0.5;
+        }
+        self.t_prev = t;
+        self.f_prev = f;
+    }
+}
+
+impl Consumer for Trapezoid<'_> {
+    #[inline(always)]
+    fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
+        // values are normalised to [0, 1]: a maximum of zero is all zeros
+        range[1] <= 0.0
+    }
+
+    #[inline]
+    fn skip(&mut self, i: usize, j: usize) -> ControlFlow<()> {
+        // the first skipped sample closes the trapezoid before the gap; the samples
+        // inside add zeros; the last one opens the trapezoid after it
+        self.add(i, self.march.t(i), 0.0);
+        self.t_prev = self.march.t(j - 1);
+        self.f_prev = 0.0;
+        ControlFlow::Continue(())
+    }
+
+    #[inline(always)]
+    fn take(&mut self, i: usize, t: f64, f: f32) -> ControlFlow<()> {
+        self.add(i, t, f64::from(f));
+        ControlFlow::Continue(())
+    }
 }
 
 /// The stored quantity for a line integral `integral` of the normalised value.

@@ -1,0 +1,244 @@
+//! Where a ray is sampled: the march of sample positions from the box entry to the
+//! exit (REFERENCE.md "Render modes"), and the midpoints of its segments (where
+//! compositing samples).
+//!
+//! A ray inside the box is sampled at `t_enter`, every `dt` after it, and at
+//! `t_exit` (the last step is shorter), so the entry and exit points are always
+//! sampled and the samples cover the whole segment. With jitter, the samples after
+//! the entry are shifted back by a per-pixel fraction of `dt` (the entry and exit
+//! are still sampled). Every position is computed from its index, `t0 + (i +
+//! shift) dt`, never accumulated, so rays of millions of samples do not drift.
+
+/// Positions along a ray, in increasing order: what a sampled integrator visits.
+pub trait Lattice {
+    /// Number of positions.
+    fn len(&self) -> usize;
+    /// True when there are no positions.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Position `i` (`0 <= i < len()`), non-decreasing in `i`.
+    fn t(&self, i: usize) -> f64;
+    /// A guess of the first index whose position is at or after `t` (the exact index
+    /// is found from it by [`Lattice::first_at_or_after`]).
+    fn guess(&self, t: f64) -> f64;
+
+    /// The smallest index `i` with `t(i) >= t` (`len()` if there is none), found by
+    /// correcting [`Lattice::guess`] against the positions themselves, so that it
+    /// agrees with `t(i)` to the last bit.
+    #[inline]
+    fn first_at_or_after(&self, t: f64) -> usize {
+        let n = self.len();
+        let g = self.guess(t);
+        let mut i = if g > 0.0 {
+            (g.ceil() as usize).min(n)
+        } else {
+            0
+        };
+        while i > 0 && self.t(i - 1) >= t {
+            i -= 1;
+        }
+        while i < n && self.t(i) < t {
+            i += 1;
+        }
+        i
+    }
+}
+
+/// Sample positions along `[t0, t1]`: `t0`, every `dt` (shifted back by a
+/// fraction of `dt` when jittered), and `t1`.
+#[derive(Clone, Copy, Debug)]
+pub struct March {
+    t0: f64,
+    t1: f64,
+    dt: f64,
+    /// Sample `i >= 1` sits at `t0 + (i + shift) dt`; `shift` is in `(-1, 0]`.
+    shift: f64,
+    full_steps: usize,
+    tail: bool,
+}
+
+impl March {
+    /// The march for one ray segment.
+    pub fn new(t0: f64, t1: f64, dt: f64) -> March {
+        March::jittered(t0, t1, dt, 0.0)
+    }
+
+    /// The march with every sample after the entry moved back by `jitter * dt`,
+    /// `jitter` in `[0, 1)` (0 = the plain march, bit for bit): the samples are
+    /// `t0`, `t0 + (1 - jitter) dt`, `t0 + (2 - jitter) dt`, ..., `t1`.
+    pub fn jittered(t0: f64, t1: f64, dt: f64, jitter: f64) -> March {
+        let shift = -jitter.clamp(0.0, 1.0 - f64::EPSILON);
+        let len = (t1 - t0).max(0.0);
+        let full_steps = (len / dt - shift).floor() as usize;
+        // a tail shorter than a millionth of a step is merged into the last sample
+        let tail = len - (full_steps as f64 + shift) * dt > 1e-6 * dt;
+        March {
+            t0,
+            t1,
+            dt,
+            shift,
+            full_steps,
+            tail,
+        }
+    }
+
+    /// Number of sample positions (at least 1: the entry).
+    pub fn len(&self) -> usize {
+        self.full_steps + 1 + usize::from(self.tail)
+    }
+
+    /// Always false: a march has at least its entry point.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Position `i` (`0 <= i < len()`): computed from the index, never accumulated,
+    /// so long rays do not drift.
+    #[inline(always)]
+    pub fn t(&self, i: usize) -> f64 {
+        if i > self.full_steps {
+            self.t1
+        } else {
+            // `i + 0.0` is exact, so the plain march is unchanged by the shift; the
+            // comparisons (not `f64::max`/`min`, which also handle NaN) keep the
+            // position inside the segment in two instructions
+            let t = self.t0 + (i as f64 + self.shift) * self.dt;
+            let t = if t > self.t0 { t } else { self.t0 };
+            if t < self.t1 {
+                t
+            } else {
+                self.t1
+            }
+        }
+    }
+
+    /// True when the segment from sample `i - 1` to sample `i` (`i >= 1`) is a whole
+    /// step long: every segment but a jittered first one and the shorter last one.
+    #[inline(always)]
+    pub fn is_full_step(&self, i: usize) -> bool {
+        (i >= 2 || self.shift == 0.0) && i <= self.full_steps
+    }
+
+    /// The step.
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+}
+
+impl Lattice for March {
+    fn len(&self) -> usize {
+        March::len(self)
+    }
+
+    #[inline(always)]
+    fn t(&self, i: usize) -> f64 {
+        March::t(self, i)
+    }
+
+    #[inline]
+    fn guess(&self, t: f64) -> f64 {
+        (t - self.t0) / self.dt - self.shift
+    }
+}
+
+/// The midpoints of a march's segments: position `i` is the middle of the segment
+/// from sample `i` to sample `i + 1` (`len()` is the march's length minus one).
+#[derive(Clone, Copy, Debug)]
+pub struct Midpoints<'a>(pub &'a March);
+
+impl Lattice for Midpoints<'_> {
+    fn len(&self) -> usize {
+        self.0.len() - 1
+    }
+
+    #[inline(always)]
+    fn t(&self, i: usize) -> f64 {
+        0.5 * (self.0.t(i) + self.0.t(i + 1))
+    }
+
+    #[inline]
+    fn guess(&self, t: f64) -> f64 {
+        self.0.guess(t) - 0.5
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn march_covers_the_segment() {
+        let m = March::new(1.0, 3.5, 1.0);
+        let ts: Vec<f64> = (0..m.len()).map(|i| m.t(i)).collect();
+        assert_eq!(ts, vec![1.0, 2.0, 3.0, 3.5]);
+        let m = March::new(1.0, 3.0, 1.0);
+        assert_eq!(
+            (0..m.len()).map(|i| m.t(i)).collect::<Vec<_>>(),
+            vec![1.0, 2.0, 3.0]
+        );
+        let m = March::new(2.0, 2.0, 0.5);
+        assert_eq!(m.len(), 1);
+        assert_eq!(m.t(0), 2.0);
+    }
+
+    #[test]
+    fn jittered_march_keeps_entry_and_exit() {
+        let m = March::jittered(1.0, 3.5, 1.0, 0.25);
+        let ts: Vec<f64> = (0..m.len()).map(|i| m.t(i)).collect();
+        assert_eq!(ts, vec![1.0, 1.75, 2.75, 3.5]);
+        let m = March::jittered(1.0, 3.0, 1.0, 0.5);
+        let ts: Vec<f64> = (0..m.len()).map(|i| m.t(i)).collect();
+        assert_eq!(ts, vec![1.0, 1.5, 2.5, 3.0]);
+        // zero jitter is the plain march, bit for bit
+        let (a, b) = (
+            March::new(0.1, 7.3, 0.37),
+            March::jittered(0.1, 7.3, 0.37, 0.0),
+        );
+        assert_eq!(a.len(), b.len());
+        for i in 0..a.len() {
+            assert_eq!(a.t(i).to_bits(), b.t(i).to_bits());
+        }
+    }
+
+    #[test]
+    fn long_march_does_not_drift() {
+        let m = March::new(0.0, 1.0, 1e-6);
+        assert_eq!(m.t(m.len() - 1), 1.0);
+        assert!((m.t(500_000) - 0.5).abs() < 1e-15);
+    }
+
+    #[test]
+    fn full_steps_are_the_interior_segments() {
+        let m = March::new(1.0, 3.5, 1.0); // 1, 2, 3, 3.5
+        let full: Vec<bool> = (1..m.len()).map(|i| m.is_full_step(i)).collect();
+        assert_eq!(full, vec![true, true, false]);
+        let m = March::jittered(1.0, 3.5, 1.0, 0.25); // 1, 1.75, 2.75, 3.5
+        let full: Vec<bool> = (1..m.len()).map(|i| m.is_full_step(i)).collect();
+        assert_eq!(full, vec![false, true, false]);
+    }
+
+    #[test]
+    fn first_at_or_after_agrees_with_the_positions() {
+        for m in [
+            March::new(0.3, 17.9, 0.7),
+            March::jittered(-4.0, 9.0, 0.25, 0.61),
+            March::new(5.0, 5.0, 1.0),
+        ] {
+            let mid = Midpoints(&m);
+            for k in 0..400 {
+                let t = -5.0 + k as f64 * 0.0625;
+                let i = m.first_at_or_after(t);
+                assert!(i == m.len() || m.t(i) >= t);
+                assert!(i == 0 || m.t(i - 1) < t);
+                let i = mid.first_at_or_after(t);
+                assert!(i == mid.len() || mid.t(i) >= t);
+                assert!(i == 0 || mid.t(i - 1) < t);
+            }
+            // at the positions themselves
+            for i in 0..m.len() {
+                assert!(m.first_at_or_after(m.t(i)) <= i);
+            }
+        }
+    }
+}

@@ -1,0 +1,724 @@
+//! Render passes: the one place that turns a scene's `[[render]]` pass into
+//! something that renders.
+//!
+//! ```text
+//! scene pass + volume header --RenderPass::new--> RenderPass   (plan time: no voxels)
+//!     .needs(), .channels(), .kind(), .table_bytes(), .describe()
+//! voxels + every pass's needs --Resources::build--> Resources   (shared precomputations)
+//! RenderPass + Resources --RenderPass::prepare--> Box<dyn RenderView>   (tables, skipping)
+//!     .render(view) -> Film
+//! ```
+//!
+//! [`RenderPass::prepare`] is where the types meet: it picks the voxel type, the
+//! reconstruction filter and the mode once, and builds a [`Kernel`] generic over
+//! all three, so no match on any of them is left in the loops over pixels and
+//! samples; everything above sees a `dyn RenderView`. Adding a mode, a filter, a
+//! skipping structure or another way to traverse the volume has this one place.
+
+use glam::DMat3;
+
+use super::frame::{Kernel, RenderView};
+use super::integrator::{
+    Average, Composite, CompositeTable, Depth, Exact, Lmip, Minip, Mip, Surface, Xray,
+};
+use super::skip::{MacroGrid, Support};
+use crate::sample::{
+    bits_table, gradient_volume_normalised, prefilter_normalised, BSpline, Cubic, Field,
+    GradientMethod, Gradients, Grid, Interpolation, Nearest, Normalize, Trilinear,
+};
+use crate::scene::{Integration, Mode, Transfer};
+use crate::shade::{Light, Shader};
+use crate::transfer::{Preintegrated, COLOR_ENTRIES, INTEGRAL_ENTRIES};
+use crate::volume::{human_bytes, ScalarType, VolumeData, Voxel};
+
+/// Entries of a 1D transfer-function table.
+pub const TABLE_1D: usize = 4096;
+/// Entries per axis of a 2D transfer-function table.
+pub const TABLE_2D: usize = 256;
+
+/// The values a macrocell grid summarises.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum GridSource {
+    /// The normalised voxels, read by a filter of this support.
+    Voxels(Support),
+    /// The prefiltered cubic coefficients (clamped to [0, 1]).
+    Coefficients,
+}
+
+/// What a pass needs computed over the whole volume before its first ray (shared
+/// between the passes that need the same thing).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Needs {
+    /// A gradient volume (3 x f32 per voxel) by this estimator.
+    pub gradient_volume: Option<GradientMethod>,
+    /// Prefiltered cubic B-spline coefficients (f32 per voxel).
+    pub coefficients: bool,
+    /// A macrocell grid for empty-space skipping.
+    pub grid: Option<GridSource>,
+}
+
+/// What a pass's films hold, for display.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageKind {
+    /// One grey value per pixel.
+    Intensity,
+    /// One distance per pixel (near shown bright).
+    Depth,
+    /// RGBA, not premultiplied.
+    Rgba,
+}
+
+/// A pass's mode with its parameters, as the integrators take them.
+#[derive(Clone, Debug)]
+enum ModeSpec {
+    Xray(Xray),
+    Mip,
+    Minip,
+    Average,
+    Lmip(Lmip),
+    Depth(Depth),
+    Surface(Surface),
+    Composite {
+        transfer_name: String,
+        transfer: Transfer,
+        shader: Option<Shader>,
+        reference_step_voxels: f64,
+        early_stop: f32,
+        preintegrated: bool,
+    },
+    Exact(Exact),
+}
+
+/// One render pass, as planned from the scene and the volume's header: what it
+/// needs, what it stores, and, once the voxels and the shared precomputations are
+/// there, the [`RenderView`] that renders it.
+#[derive(Clone, Debug)]
+pub struct RenderPass {
+    /// The pass's name (file prefix).
+    pub name: String,
+    mode: ModeSpec,
+    mode_name: &'static str,
+    interpolation: Interpolation,
+    gradient: GradientMethod,
+    /// Sample spacing in world units.
+    pub dt: f64,
+    step_voxels: f64,
+    voxel_length: f64,
+    jitter: Option<u64>,
+    needs: Needs,
+    scalar_type: ScalarType,
+}
+
+impl RenderPass {
+    /// Plans `pass` for a volume of `scalar_type` whose smallest spacing is
+    /// `voxel_length`, lit by `light`; `skip` = empty-space skipping.
+    pub fn new(
+        pass: &crate::scene::RenderPass,
+        scalar_type: ScalarType,
+        voxel_length: f64,
+        light: Light,
+        skip: bool,
+    ) -> RenderPass {
+        let shader = |s: &crate::scene::Shading| Shader {
+            model: s.model,
+            material: s.material,
+            light,
+        };
+        let exact = pass.integration == Integration::Exact;
+        let mode = match &pass.mode {
+            Mode::Xray { output, mu } => {
+                let x = Xray {
+                    output: *output,
+                    mu: *mu,
+                };
+                if exact {
+                    ModeSpec::Exact(Exact::Xray {
+                        output: x.output,
+                        mu: x.mu,
+                    })
+                } else {
+                    ModeSpec::Xray(x)
+                }
+            }
+            Mode::Mip if exact => ModeSpec::Exact(Exact::Mip),
+            Mode::Mip => ModeSpec::Mip,
+            Mode::Minip if exact => ModeSpec::Exact(Exact::Minip),
+            Mode::Minip => ModeSpec::Minip,
+            Mode::Average if exact => ModeSpec::Exact(Exact::Average),
+            Mode::Average => ModeSpec::Average,
+            // the scene rejects exact integration for local MIP and compositing
+            Mode::Lmip { threshold } => ModeSpec::Lmip(Lmip {
+                threshold: *threshold as f32,
+            }),
+            Mode::Depth { threshold } if exact => ModeSpec::Exact(Exact::Depth {
+                threshold: *threshold as f32,
+            }),
+            Mode::Depth { threshold } => ModeSpec::Depth(Depth {
+                threshold: *threshold as f32,
+            }),
+            Mode::Surface { iso, shading } if exact => ModeSpec::Exact(Exact::Surface {
+                iso: *iso as f32,
+                shader: shader(shading),
+            }),
+            Mode::Surface { iso, shading } => ModeSpec::Surface(Surface {
+                iso: *iso as f32,
+                shader: shader(shading),
+            }),
+            Mode::Composite {
+                transfer_name,
+                transfer,
+                shading,
+                reference_step_voxels,
+                early_stop,
+                preintegrated,
+            } => ModeSpec::Composite {
+                transfer_name: transfer_name.clone(),
+                transfer: transfer.clone(),
+                shader: shading.as_ref().map(shader),
+                reference_step_voxels: *reference_step_voxels,
+                early_stop: *early_stop as f32,
+                preintegrated: *preintegrated && matches!(transfer, Transfer::OneD(_)),
+            },
+        };
+        let gradient = pass
+            .mode
+            .shading()
+            .map_or(GradientMethod::Central, |s| s.gradient);
+        // exact integration walks the trilinear interpolant whatever the filter
+        let interpolation = if exact {
+            Interpolation::Trilinear
+        } else {
+            pass.interpolation
+        };
+        // a gradient volume only where many samples per ray need a gradient: shaded
+        // composites and 2D transfer functions (surfaces take one gradient per ray,
+        // on the fly; analytic gradients differentiate the spline on the fly)
+        let gradient_volume = match &mode {
+            ModeSpec::Composite {
+                transfer, shader, ..
+            } => (shader.is_some() || matches!(transfer, Transfer::TwoD(_)))
+                .then_some(gradient)
+                .filter(|g| *g != GradientMethod::Analytic),
+            _ => None,
+        };
+        let grid = skip.then_some(match interpolation {
+            Interpolation::Nearest | Interpolation::Trilinear => {
+                GridSource::Voxels(Support::Linear)
+            }
+            Interpolation::BSpline => GridSource::Voxels(Support::Cubic),
+            Interpolation::Cubic => GridSource::Coefficients,
+        });
+        RenderPass {
+            name: pass.name.clone(),
+            mode_name: pass.mode.name(),
+            mode,
+            interpolation,
+            gradient,
+            dt: pass.step_voxels * voxel_length,
+            step_voxels: pass.step_voxels,
+            voxel_length,
+            // the pass's seed: a hash of its name, so each pass jitters differently
+            jitter: pass.jitter.then(|| {
+                pass.name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+                    (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+                })
+            }),
+            needs: Needs {
+                gradient_volume,
+                coefficients: interpolation == Interpolation::Cubic,
+                grid,
+            },
+            scalar_type,
+        }
+    }
+
+    /// What the pass needs computed over the whole volume.
+    pub fn needs(&self) -> &Needs {
+        &self.needs
+    }
+
+    /// The scene-file name of the pass's mode.
+    pub fn mode_name(&self) -> &'static str {
+        self.mode_name
+    }
+
+    /// Channels of its films (1 = intensity or depth, 4 = RGBA).
+    pub fn channels(&self) -> usize {
+        match self.kind() {
+            ImageKind::Rgba => 4,
+            _ => 1,
+        }
+    }
+
+    /// What its films hold.
+    pub fn kind(&self) -> ImageKind {
+        match &self.mode {
+            ModeSpec::Surface(_)
+            | ModeSpec::Composite { .. }
+            | ModeSpec::Exact(Exact::Surface { .. }) => ImageKind::Rgba,
+            ModeSpec::Depth(_) | ModeSpec::Exact(Exact::Depth { .. }) => ImageKind::Depth,
+            _ => ImageKind::Intensity,
+        }
+    }
+
+    /// Bytes of the pass's own tables (transfer-function and pre-integration tables,
+    /// the macrocells' transparency), built when it is prepared.
+    pub fn table_bytes(&self, sizes: [usize; 3]) -> u64 {
+        match &self.mode {
+            ModeSpec::Composite {
+                transfer,
+                preintegrated,
+                ..
+            } => {
+                let entries = match transfer {
+                    Transfer::OneD(_) => TABLE_1D,
+                    Transfer::TwoD(_) => TABLE_2D * TABLE_2D,
+                } as u64;
+                // the table and its copy corrected for one step
+                let tables = 2 * entries * 16;
+                let pre = if *preintegrated {
+                    Preintegrated::planned_bytes()
+                } else {
+                    0
+                };
+                let cells = if self.needs.grid.is_some() {
+                    MacroGrid::bytes(sizes) / 8
+                } else {
+                    0
+                };
+                tables + pre + cells
+            }
+            _ => 0,
+        }
+    }
+
+    /// What the pass computes and precomputes, one item per entry (for `volcast
+    /// check`).
+    pub fn describe(&self, sizes: [usize; 3]) -> Vec<String> {
+        let mut needs = Vec::new();
+        if let ModeSpec::Exact(_) = self.mode {
+            needs.push(
+                "exact integration of the trilinear interpolant, cell by cell (no step)".into(),
+            );
+        }
+        if self.jitter.is_some() {
+            needs.push("jittered first sample per pixel".into());
+        }
+        if let Some(g) = self.needs.gradient_volume {
+            needs.push(format!("{} gradient volume", g.name()));
+        }
+        let shader = match &self.mode {
+            ModeSpec::Surface(s) => Some(&s.shader),
+            ModeSpec::Exact(Exact::Surface { shader, .. }) => Some(shader),
+            ModeSpec::Composite { shader, .. } => shader.as_ref(),
+            _ => None,
+        };
+        if let Some(sh) = shader {
+            if self.gradient == GradientMethod::Analytic {
+                needs.push(format!(
+                    "analytic gradients of the {} spline, on the fly",
+                    self.interpolation.name()
+                ));
+            } else if self.needs.gradient_volume.is_none() {
+                needs.push(format!(
+                    "{} gradients at the hit points",
+                    self.gradient.name()
+                ));
+            }
+            needs.push(format!("{:?} shading", sh.model).to_lowercase());
+        }
+        if self.needs.coefficients {
+            needs.push("prefiltered cubic coefficients".into());
+        }
+        if let ModeSpec::Composite {
+            transfer_name,
+            transfer,
+            preintegrated,
+            ..
+        } = &self.mode
+        {
+            let n = match transfer {
+                Transfer::OneD(_) => TABLE_1D,
+                Transfer::TwoD(_) => TABLE_2D * TABLE_2D,
+            };
+            needs.push(format!("transfer table `{transfer_name}` ({n} entries)"));
+            if *preintegrated {
+                needs.push(format!(
+                    "pre-integration table ({} integral entries, {}x{} segment colours for this step, {})",
+                    INTEGRAL_ENTRIES + 1,
+                    COLOR_ENTRIES,
+                    COLOR_ENTRIES,
+                    human_bytes(Preintegrated::planned_bytes())
+                ));
+            }
+        }
+        if let Some(source) = self.needs.grid {
+            let d = MacroGrid::dims(sizes);
+            let what = match (&self.mode, source) {
+                (ModeSpec::Xray(_) | ModeSpec::Average, _)
+                | (ModeSpec::Exact(Exact::Xray { .. } | Exact::Average), _) => "all-zero cells",
+                (ModeSpec::Mip | ModeSpec::Exact(Exact::Mip), _) => {
+                    "cells that cannot beat the running maximum"
+                }
+                (ModeSpec::Minip | ModeSpec::Exact(Exact::Minip), _) => {
+                    "cells that cannot beat the running minimum"
+                }
+                (ModeSpec::Composite { .. }, _) => {
+                    "cells where the transfer function is transparent"
+                }
+                _ => "cells that cannot reach the threshold",
+            };
+            let of = match source {
+                GridSource::Voxels(_) => "voxels",
+                GridSource::Coefficients => "cubic coefficients",
+            };
+            needs.push(format!(
+                "empty-space skipping: {} x {} x {} macrocells of {} voxels, min/max of the {of} ({}), skips {what}",
+                d[0],
+                d[1],
+                d[2],
+                super::skip::MACROCELL,
+                human_bytes(MacroGrid::bytes(sizes))
+            ));
+        }
+        needs
+    }
+
+    /// Builds the pass's tables over the run's shared precomputations and returns
+    /// it ready to render: the one place where the voxel type, the filter and the
+    /// mode are matched.
+    ///
+    /// The combinations that matter for speed are compiled for every mode: the
+    /// trilinear filter over 8-bit (signed or unsigned: their bits index one
+    /// normalisation table), 16-bit and float32 voxels, and the cubic filter (whose
+    /// values come from its `f32` coefficients, whatever the voxels' type). The other
+    /// combinations (nearest and B-spline filters, 32- and 64-bit integer and float64
+    /// voxels) reach their filter through one virtual call per sample, which keeps
+    /// the build small; their inner loops are otherwise the same.
+    pub fn prepare<'a>(&'a self, res: &'a Resources<'a>) -> Box<dyn RenderView + 'a> {
+        assert_eq!(
+            res.data.scalar_type(),
+            self.scalar_type,
+            "the volume has the type its header announced"
+        );
+        let exact = matches!(self.mode, ModeSpec::Exact(_));
+        match (self.interpolation, self.scalar_type) {
+            (Interpolation::Cubic, _) if !exact => {
+                let coefficients = res
+                    .coefficients
+                    .as_deref()
+                    .expect("the plan makes coefficients for cubic passes");
+                let cubic = Cubic {
+                    coefficients,
+                    n: res.sizes,
+                    method: self.gradient,
+                    world_from_index: res.index_from_world.transpose(),
+                    voxels: self.dyn_field(res, Interpolation::Trilinear),
+                };
+                self.with_field(cubic, res)
+            }
+            (Interpolation::Trilinear, ScalarType::Uint8 | ScalarType::Int8) => {
+                self.with_field(self.trilinear::<u8>(res), res)
+            }
+            (Interpolation::Trilinear, ScalarType::Uint16 | ScalarType::Int16) => {
+                self.with_field(self.trilinear::<u16>(res), res)
+            }
+            (Interpolation::Trilinear, ScalarType::Float32) => {
+                self.with_field(self.trilinear::<f32>(res), res)
+            }
+            (interpolation, _) => self.with_field(self.dyn_field(res, interpolation), res),
+        }
+    }
+
+    /// The grid over the volume's voxels as `T`: their own type, or the unsigned
+    /// type of the same size for 8- and 16-bit data (read as bits).
+    fn grid<'a, T: Voxel>(&self, res: &'a Resources<'a>) -> Grid<'a, T> {
+        let voxels = match self.scalar_type {
+            ScalarType::Int8 => res.data.voxels::<i8>().map(|v| v.reinterpret::<T>()),
+            ScalarType::Int16 => res.data.voxels::<i16>().map(|v| v.reinterpret::<T>()),
+            _ => res.data.voxels::<T>(),
+        }
+        .expect("the volume has the type its header announced");
+        let grid = Grid::new(voxels, res.sizes, res.norm, &res.lut);
+        match self.scalar_type {
+            ScalarType::Int8 | ScalarType::Int16 => grid.signed_bits(),
+            _ => grid,
+        }
+    }
+
+    fn gradients<'a>(&self, res: &'a Resources<'a>) -> Gradients<'a> {
+        Gradients::new(
+            self.gradient,
+            self.needs
+                .gradient_volume
+                .and_then(|m| res.gradient_volume(m)),
+            res.index_from_world,
+        )
+    }
+
+    fn trilinear<'a, T: Voxel>(&self, res: &'a Resources<'a>) -> Trilinear<'a, T> {
+        Trilinear {
+            grid: self.grid::<T>(res),
+            gradients: self.gradients(res),
+        }
+    }
+
+    /// `interpolation` over the voxels, behind a virtual call.
+    fn dyn_field<'a>(
+        &self,
+        res: &'a Resources<'a>,
+        interpolation: Interpolation,
+    ) -> Box<dyn Field + 'a> {
+        fn typed<'a, T: Voxel>(
+            pass: &RenderPass,
+            res: &'a Resources<'a>,
+            interpolation: Interpolation,
+        ) -> Box<dyn Field + 'a> {
+            let (grid, gradients) = (pass.grid::<T>(res), pass.gradients(res));
+            match interpolation {
+                Interpolation::Nearest => Box::new(Nearest { grid, gradients }),
+                Interpolation::BSpline => Box::new(BSpline { grid, gradients }),
+                // cubic passes read their coefficients; this serves their gradients
+                Interpolation::Trilinear | Interpolation::Cubic => {
+                    Box::new(Trilinear { grid, gradients })
+                }
+            }
+        }
+        match self.scalar_type {
+            ScalarType::Int8 | ScalarType::Uint8 => typed::<u8>(self, res, interpolation),
+            ScalarType::Int16 | ScalarType::Uint16 => typed::<u16>(self, res, interpolation),
+            ScalarType::Int32 => typed::<i32>(self, res, interpolation),
+            ScalarType::Uint32 => typed::<u32>(self, res, interpolation),
+            ScalarType::Int64 => typed::<i64>(self, res, interpolation),
+            ScalarType::Uint64 => typed::<u64>(self, res, interpolation),
+            ScalarType::Float32 => typed::<f32>(self, res, interpolation),
+            ScalarType::Float64 => typed::<f64>(self, res, interpolation),
+        }
+    }
+
+    fn kernel<'a, F: Field, I: super::integrator::Integrand>(
+        &self,
+        field: F,
+        integrand: I,
+        res: &'a Resources<'a>,
+    ) -> Kernel<'a, F, I> {
+        Kernel {
+            field,
+            integrand,
+            grid: self.needs.grid.and_then(|s| res.grid(s)),
+            dt: self.dt,
+            jitter: self.jitter,
+        }
+    }
+
+    fn with_field<'a, F: Field + 'a>(
+        &'a self,
+        field: F,
+        res: &'a Resources<'a>,
+    ) -> Box<dyn RenderView + 'a> {
+        match &self.mode {
+            ModeSpec::Xray(x) => Box::new(self.kernel(field, *x, res)),
+            ModeSpec::Mip => Box::new(self.kernel(field, Mip, res)),
+            ModeSpec::Minip => Box::new(self.kernel(field, Minip, res)),
+            ModeSpec::Average => Box::new(self.kernel(field, Average, res)),
+            ModeSpec::Lmip(l) => Box::new(self.kernel(field, *l, res)),
+            ModeSpec::Depth(d) => Box::new(self.kernel(field, *d, res)),
+            ModeSpec::Surface(s) => Box::new(self.kernel(field, *s, res)),
+            ModeSpec::Composite {
+                transfer,
+                shader,
+                reference_step_voxels,
+                early_stop,
+                preintegrated,
+                ..
+            } => {
+                let table = match transfer {
+                    Transfer::OneD(t) => CompositeTable::OneD(t.table(TABLE_1D)),
+                    Transfer::TwoD(t) => CompositeTable::TwoD(t.table(TABLE_2D, TABLE_2D)),
+                };
+                let pre = match (preintegrated, transfer) {
+                    (true, Transfer::OneD(tf)) => Some(Preintegrated::build(
+                        tf,
+                        self.step_voxels / reference_step_voxels,
+                    )),
+                    _ => None,
+                };
+                let mut c = Composite::new(
+                    table,
+                    self.dt,
+                    reference_step_voxels * self.voxel_length,
+                    *shader,
+                    *early_stop,
+                    self.voxel_length,
+                    pre,
+                );
+                if let Some(g) = self.needs.grid.and_then(|s| res.grid(s)) {
+                    c.classify(g);
+                }
+                Box::new(self.kernel(field, c, res))
+            }
+            // exact passes walk the trilinear interpolant (the scene asks for it)
+            ModeSpec::Exact(e) => Box::new(self.kernel(field, e.clone(), res)),
+        }
+    }
+}
+
+/// The run's shared precomputations over the voxels: the normalisation table,
+/// prefiltered coefficients, gradient volumes and macrocell grids, each built once
+/// for all the passes that need it, and only if one does.
+pub struct Resources<'v> {
+    data: &'v VolumeData,
+    sizes: [usize; 3],
+    norm: Normalize,
+    lut: Vec<f32>,
+    coefficients: Option<Vec<f32>>,
+    gradients: Vec<(GradientMethod, Vec<[f32; 3]>)>,
+    grids: Vec<(GridSource, MacroGrid)>,
+    index_from_world: DMat3,
+}
+
+impl<'v> Resources<'v> {
+    /// Builds what `passes` need over `data` (`sizes` voxels, normalised by `norm`).
+    pub fn build<'p>(
+        data: &'v VolumeData,
+        sizes: [usize; 3],
+        norm: Normalize,
+        index_from_world: DMat3,
+        passes: impl IntoIterator<Item = &'p RenderPass>,
+    ) -> Resources<'v> {
+        let needs: Vec<Needs> = passes.into_iter().map(|p| p.needs).collect();
+        let ty = data.scalar_type();
+        let lut = bits_table(ty, norm).unwrap_or_default();
+        macro_rules! build {
+            ($t:ty, $read:ty) => {
+                build_typed::<$read>(
+                    data,
+                    data.voxels::<$t>()
+                        .expect("dispatched on the data's own type")
+                        .reinterpret::<$read>(),
+                    lut,
+                    sizes,
+                    norm,
+                    &needs,
+                    index_from_world,
+                )
+            };
+        }
+        match ty {
+            ScalarType::Int8 => build!(i8, u8),
+            ScalarType::Uint8 => build!(u8, u8),
+            ScalarType::Int16 => build!(i16, u16),
+            ScalarType::Uint16 => build!(u16, u16),
+            ScalarType::Int32 => build!(i32, i32),
+            ScalarType::Uint32 => build!(u32, u32),
+            ScalarType::Int64 => build!(i64, i64),
+            ScalarType::Uint64 => build!(u64, u64),
+            ScalarType::Float32 => build!(f32, f32),
+            ScalarType::Float64 => build!(f64, f64),
+        }
+    }
+
+    fn gradient_volume(&self, method: GradientMethod) -> Option<&[[f32; 3]]> {
+        self.gradients
+            .iter()
+            .find(|(m, _)| *m == method)
+            .map(|(_, v)| v.as_slice())
+    }
+
+    fn grid(&self, source: GridSource) -> Option<&MacroGrid> {
+        self.grids
+            .iter()
+            .find(|(s, _)| *s == source)
+            .map(|(_, g)| g)
+    }
+
+    /// Bytes held (tables, coefficients, gradient volumes, grids).
+    pub fn bytes(&self) -> u64 {
+        (std::mem::size_of_val(self.lut.as_slice())
+            + self
+                .coefficients
+                .as_ref()
+                .map_or(0, |c| std::mem::size_of_val(c.as_slice()))
+            + self
+                .gradients
+                .iter()
+                .map(|(_, g)| std::mem::size_of_val(g.as_slice()))
+                .sum::<usize>()
+            + self.grids.iter().map(|(_, g)| g.len() * 8).sum::<usize>()) as u64
+    }
+}
+
+/// The precomputations over `voxels` (the volume's data, read as `T`: its own type,
+/// or the unsigned bits of 8- and 16-bit data, which `lut` normalises).
+fn build_typed<'v, T: Voxel>(
+    data: &'v VolumeData,
+    voxels: crate::volume::Voxels<'v, T>,
+    lut: Vec<f32>,
+    sizes: [usize; 3],
+    norm: Normalize,
+    needs: &[Needs],
+    index_from_world: DMat3,
+) -> Resources<'v> {
+    let grid = Grid::new(voxels, sizes, norm, &lut);
+    let grid = match data.scalar_type() {
+        ScalarType::Int8 | ScalarType::Int16 => grid.signed_bits(),
+        _ => grid,
+    };
+    let value = |i: usize| grid.at(i);
+    let coefficients = needs
+        .iter()
+        .any(|n| n.coefficients)
+        .then(|| prefilter_normalised(sizes, value));
+    let mut gradients: Vec<(GradientMethod, Vec<[f32; 3]>)> = Vec::new();
+    for m in needs.iter().filter_map(|n| n.gradient_volume) {
+        if !gradients.iter().any(|(g, _)| *g == m) {
+            gradients.push((m, gradient_volume_normalised(sizes, m, value)));
+        }
+    }
+    let mut sources: Vec<GridSource> = needs.iter().filter_map(|n| n.grid).collect();
+    sources.sort();
+    sources.dedup();
+    let grids = sources
+        .into_iter()
+        .map(|s| {
+            let g = match s {
+                GridSource::Voxels(support) => {
+                    MacroGrid::build(sizes, support, |start, len| grid.run_range(start, len))
+                }
+                GridSource::Coefficients => {
+                    let c = coefficients
+                        .as_deref()
+                        .expect("cubic passes make coefficients");
+                    MacroGrid::build(sizes, Support::Cubic, |start, len| {
+                        c[start..start + len]
+                            .iter()
+                            .fold([1.0f32, 0.0f32], |[lo, hi], &v| {
+                                let v = v.clamp(0.0, 1.0);
+                                [lo.min(v), hi.max(v)]
+                            })
+                    })
+                }
+            };
+            (s, g)
+        })
+        .collect();
+    Resources {
+        data,
+        sizes,
+        norm,
+        lut,
+        coefficients,
+        gradients,
+        grids,
+        index_from_world,
+    }
+}
+
+impl std::fmt::Debug for Resources<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Resources")
+            .field("sizes", &self.sizes)
+            .field("bytes", &self.bytes())
+            .finish_non_exhaustive()
+    }
+}

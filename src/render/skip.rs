@@ -1,0 +1,379 @@
+//! Empty-space skipping: a coarse grid of macrocells, each holding the range of
+//! values the reconstructed field can take inside it, and the walk of a ray through
+//! those macrocells.
+//!
+//! A macrocell covers [`MACROCELL`] voxel cells per axis. Its range is the min and
+//! max of the values the pass's filter reads anywhere in the cell (the voxels of
+//! the cell plus the filter's support beyond it, and one voxel more, so that a
+//! sample a round-off outside the cell is still covered), widened by a few ulps
+//! for the round-off of interpolation. Every filter volcast has is a weighted
+//! average with non-negative weights of the values it reads (trilinear, the
+//! B-splines) or one of them (nearest), so no sample in the cell lies outside that
+//! range. An integrator that can tell from a range that no sample in a cell can
+//! change its result (the transfer function is transparent over it, it cannot beat
+//! the running maximum, it cannot reach the threshold, it is all zero) passes over
+//! the cell's samples; the samples it does take are those of the unskipped march,
+//! so the image is the same (bit for bit: see the tests that compare both).
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::ray::IndexRay;
+
+/// Voxel cells per macrocell and axis.
+pub const MACROCELL: usize = 8;
+
+/// How far beyond its cell a filter reads, in voxels: the support the macrocell
+/// ranges must include.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Support {
+    /// Nearest and trilinear: the cell's own corner voxels.
+    Linear,
+    /// The cubic B-splines: one voxel before and two after.
+    Cubic,
+}
+
+impl Support {
+    /// Voxels read beyond each side of a cell, plus the one voxel of margin.
+    fn reach(self) -> (usize, usize) {
+        match self {
+            Support::Linear => (1, 1),
+            Support::Cubic => (2, 3),
+        }
+    }
+}
+
+/// The value range of the field over every macrocell.
+#[derive(Clone, Debug)]
+pub struct MacroGrid {
+    dims: [usize; 3],
+    /// `[min, max]` per macrocell, x fastest.
+    ranges: Vec<[f32; 2]>,
+}
+
+impl MacroGrid {
+    /// Macrocells per axis for a grid of `n` voxels.
+    pub fn dims(n: [usize; 3]) -> [usize; 3] {
+        n.map(|n| n.saturating_sub(1).div_ceil(MACROCELL).max(1))
+    }
+
+    /// Bytes a grid for `n` voxels takes.
+    pub fn bytes(n: [usize; 3]) -> u64 {
+        // saturating: a hostile header's sizes must not overflow (the plan rejects them)
+        Self::dims(n)
+            .iter()
+            .fold(8u64, |a, &d| a.saturating_mul(d as u64))
+    }
+
+    /// The grid over `n` voxels for a filter of `support`, where `run(start, len)`
+    /// is the range `[min, max]` of the normalised values (as the filter reads them)
+    /// of the `len` voxels from flat index `start` along x.
+    ///
+    /// Separable: the ranges of each voxel row's windows along x, then of those
+    /// along y, then along z, one slab of macrocells at a time (in parallel), so
+    /// each voxel is read little more than once.
+    pub fn build(
+        n: [usize; 3],
+        support: Support,
+        run: impl Fn(usize, usize) -> [f32; 2] + Sync,
+    ) -> Self {
+        let dims = Self::dims(n);
+        let (before, after) = support.reach();
+        let window = |c: usize, axis: usize| {
+            let lo = (c * MACROCELL).saturating_sub(before);
+            let hi = ((c + 1) * MACROCELL + after).min(n[axis] - 1);
+            (lo, hi)
+        };
+        let (sx, sxy) = (n[0], n[0] * n[1]);
+        let union = |a: [f32; 2], b: [f32; 2]| {
+            [
+                if b[0] < a[0] { b[0] } else { a[0] },
+                if b[1] > a[1] { b[1] } else { a[1] },
+            ]
+        };
+        const EMPTY: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
+        let slabs: Vec<Vec<[f32; 2]>> = (0..dims[2])
+            .into_par_iter()
+            .map(|ck| {
+                let (z0, z1) = window(ck, 2);
+                let nz = z1 - z0 + 1;
+                // along x: per (z, y) row, per macrocell column
+                let mut rows = vec![EMPTY; nz * n[1] * dims[0]];
+                for z in 0..nz {
+                    for y in 0..n[1] {
+                        let start = sx * y + sxy * (z0 + z);
+                        let out = &mut rows[(z * n[1] + y) * dims[0]..][..dims[0]];
+                        for (ci, r) in out.iter_mut().enumerate() {
+                            let (x0, x1) = window(ci, 0);
+                            *r = run(start + x0, x1 - x0 + 1);
+                        }
+                    }
+                }
+                // along y, then z
+                let mut cells = vec![EMPTY; dims[0] * dims[1]];
+                for cj in 0..dims[1] {
+                    let (y0, y1) = window(cj, 1);
+                    for z in 0..nz {
+                        for y in y0..=y1 {
+                            let row = &rows[(z * n[1] + y) * dims[0]..][..dims[0]];
+                            let out = &mut cells[cj * dims[0]..][..dims[0]];
+                            for (o, &r) in out.iter_mut().zip(row) {
+                                *o = union(*o, r);
+                            }
+                        }
+                    }
+                }
+                cells.into_iter().map(|[lo, hi]| widen(lo, hi)).collect()
+            })
+            .collect();
+        MacroGrid {
+            dims,
+            ranges: slabs.into_iter().flatten().collect(),
+        }
+    }
+
+    /// [`MacroGrid::build`] from the normalised value of every voxel,
+    /// `value(flat index)` (one call per voxel read; for tests and small grids).
+    pub fn from_values(
+        n: [usize; 3],
+        support: Support,
+        value: impl Fn(usize) -> f32 + Sync,
+    ) -> Self {
+        Self::build(n, support, |start, len| {
+            (start..start + len).fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], i| {
+                let v = value(i);
+                [lo.min(v), hi.max(v)]
+            })
+        })
+    }
+
+    /// Macrocells per axis.
+    pub fn cell_dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// The value range of macrocell `m` (a flat index).
+    #[inline(always)]
+    pub fn range(&self, m: usize) -> [f32; 2] {
+        self.ranges[m]
+    }
+
+    /// Number of macrocells.
+    pub fn len(&self) -> usize {
+        self.ranges.len()
+    }
+
+    /// True for a grid without cells (never: every grid has at least one).
+    pub fn is_empty(&self) -> bool {
+        self.ranges.is_empty()
+    }
+
+    /// The flat index of the macrocell holding the voxel cell `c`.
+    #[inline(always)]
+    pub fn of_cell(&self, c: [usize; 3]) -> usize {
+        let m = |a: usize| (c[a] / MACROCELL).min(self.dims[a] - 1);
+        m(0) + self.dims[0] * (m(1) + self.dims[1] * m(2))
+    }
+
+    /// The macrocells `ray` crosses between `t_enter` and `t_exit`, in order.
+    pub fn walk(&self, ray: &IndexRay, t_enter: f64, t_exit: f64) -> Walk<'_> {
+        Walk::new(self, ray, t_enter, t_exit)
+    }
+}
+
+/// A range widened by the round-off interpolation can add: a few ulps of the
+/// larger magnitude (values are normalised to [0, 1], so the max), and kept in
+/// [0, 1], to which every filter clamps its result. Exact zeros stay exact: a filter
+/// reading only zeros returns zero.
+fn widen(lo: f32, hi: f32) -> [f32; 2] {
+    let slack = 8.0 * f32::EPSILON * hi.abs().max(lo.abs());
+    [(lo - slack).max(0.0), (hi + slack).min(1.0)]
+}
+
+/// One step of a [`Walk`]: the ray's parameter interval inside one macrocell.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Span {
+    /// Where the ray enters the macrocell (or `t_enter`).
+    pub t0: f64,
+    /// Where it leaves (or `t_exit`).
+    pub t1: f64,
+    /// The macrocell's flat index.
+    pub cell: usize,
+    /// True for the last span of the ray.
+    pub last: bool,
+}
+
+/// The macrocells a ray crosses, in order (a 3D DDA, Amanatides and Woo 1987, with
+/// every crossing computed from its plane index, never accumulated). Cells outside
+/// the grid (the half-voxel slabs of one-voxel axes) are clamped to it.
+#[derive(Clone, Debug)]
+pub struct Walk<'a> {
+    grid: &'a MacroGrid,
+    o: DVec3,
+    d: DVec3,
+    cell: [i64; 3],
+    step: [i64; 3],
+    t_next: [f64; 3],
+    t: f64,
+    t_exit: f64,
+    done: bool,
+}
+
+impl<'a> Walk<'a> {
+    fn new(grid: &'a MacroGrid, ray: &IndexRay, t_enter: f64, t_exit: f64) -> Walk<'a> {
+        let b = MACROCELL as f64;
+        let (o, d) = (ray.o, ray.d);
+        let mut cell = [0i64; 3];
+        let mut step = [0i64; 3];
+        let mut t_next = [f64::INFINITY; 3];
+        // the cell of the point a little inside the entry, so that a ray entering
+        // exactly on a macrocell face starts in the cell it goes into
+        let mid = if t_exit > t_enter {
+            t_enter + 1e-9 * (t_exit - t_enter)
+        } else {
+            t_enter
+        };
+        for a in 0..3 {
+            let p = o[a] + mid * d[a];
+            cell[a] = (p / b).floor() as i64;
+            if d[a] > 0.0 {
+                step[a] = 1;
+                t_next[a] = ((cell[a] + 1) as f64 * b - o[a]) / d[a];
+            } else if d[a] < 0.0 {
+                step[a] = -1;
+                t_next[a] = (cell[a] as f64 * b - o[a]) / d[a];
+            }
+        }
+        let ok = t_enter.is_finite() && t_exit.is_finite() && t_exit >= t_enter;
+        Walk {
+            grid,
+            o,
+            d,
+            cell,
+            step,
+            t_next,
+            t: t_enter,
+            t_exit,
+            done: !ok,
+        }
+    }
+
+    #[inline(always)]
+    fn flat(&self) -> usize {
+        let dims = self.grid.dims;
+        let c = |a: usize| self.cell[a].clamp(0, dims[a] as i64 - 1) as usize;
+        c(0) + dims[0] * (c(1) + dims[1] * c(2))
+    }
+}
+
+impl Iterator for Walk<'_> {
+    type Item = Span;
+
+    #[inline]
+    fn next(&mut self) -> Option<Span> {
+        if self.done {
+            return None;
+        }
+        let a = if self.t_next[0] <= self.t_next[1] && self.t_next[0] <= self.t_next[2] {
+            0
+        } else if self.t_next[1] <= self.t_next[2] {
+            1
+        } else {
+            2
+        };
+        let t1 = self.t_next[a].min(self.t_exit);
+        let last = t1 >= self.t_exit || !t1.is_finite();
+        let span = Span {
+            t0: self.t,
+            t1: if last { self.t_exit } else { t1.max(self.t) },
+            cell: self.flat(),
+            last,
+        };
+        if last {
+            self.done = true;
+        } else {
+            self.t = span.t1;
+            self.cell[a] += self.step[a];
+            let plane = if self.step[a] > 0 {
+                self.cell[a] + 1
+            } else {
+                self.cell[a]
+            };
+            self.t_next[a] = (plane as f64 * MACROCELL as f64 - self.o[a]) / self.d[a];
+        }
+        Some(span)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_cover_the_support() {
+        // a single bright voxel at (9, 0, 0) of a 20 x 2 x 2 grid: macrocell 0 covers
+        // cells 0..8 (voxels 0..=8) plus one voxel of margin (9); macrocell 1 covers
+        // voxels 7..=17, macrocell 2 voxels 15..=19
+        let n = [20, 2, 2];
+        let value = |i: usize| if i == 9 { 1.0 } else { 0.0 };
+        let g = MacroGrid::from_values(n, Support::Linear, value);
+        assert_eq!(g.cell_dims(), [3, 1, 1]);
+        assert_eq!(g.range(0), [0.0, 1.0]);
+        assert_eq!(g.range(1), [0.0, 1.0]);
+        assert_eq!(g.range(2), [0.0, 0.0]);
+        let g = MacroGrid::from_values(n, Support::Cubic, value);
+        assert!(g.range(2)[1] == 0.0, "voxels 14..=19 for the cubic support");
+        let value = |i: usize| if i == 14 { 1.0 } else { 0.0 };
+        let g = MacroGrid::from_values(n, Support::Cubic, value);
+        assert!(g.range(2)[1] > 0.0);
+    }
+
+    #[test]
+    fn walk_visits_the_cells_in_order_and_covers_the_interval() {
+        let g = MacroGrid::from_values([33, 33, 33], Support::Linear, |_| 0.0);
+        assert_eq!(g.cell_dims(), [4, 4, 4]);
+        let ray = IndexRay {
+            o: DVec3::new(-1.0, 3.0, 30.0),
+            d: DVec3::new(1.0, 0.7, -0.9).normalize(),
+        };
+        let spans: Vec<Span> = g.walk(&ray, 2.0, 30.0).collect();
+        assert_eq!(spans.first().unwrap().t0, 2.0);
+        assert_eq!(spans.last().unwrap().t1, 30.0);
+        assert!(spans.last().unwrap().last);
+        for w in spans.windows(2) {
+            assert_eq!(w[0].t1, w[1].t0);
+            assert_ne!(w[0].cell, w[1].cell);
+        }
+        // each span's midpoint lies in its cell
+        for s in &spans {
+            let p = ray.at(0.5 * (s.t0 + s.t1));
+            let c = p
+                .to_array()
+                .map(|x| ((x / 8.0).floor() as i64).clamp(0, 3) as usize);
+            assert_eq!(s.cell, c[0] + 4 * (c[1] + 4 * c[2]), "{s:?} at {p}");
+        }
+    }
+
+    #[test]
+    fn axis_rays_and_zero_length_rays() {
+        let g = MacroGrid::from_values([17, 17, 1], Support::Linear, |_| 0.0);
+        assert_eq!(g.cell_dims(), [2, 2, 1]);
+        let ray = IndexRay {
+            o: DVec3::new(8.0, -5.0, 0.0),
+            d: DVec3::Y,
+        };
+        let spans: Vec<Span> = g.walk(&ray, 5.0, 21.0).collect();
+        assert_eq!(spans.len(), 2);
+        assert_eq!((spans[0].t0, spans[0].t1), (5.0, 13.0));
+        let spans: Vec<Span> = g.walk(&ray, 7.0, 7.0).collect();
+        assert_eq!(spans.len(), 1);
+        assert!(spans[0].last);
+    }
+
+    #[test]
+    fn grid_is_small() {
+        // 1/64 of a uint8 volume with 8^3 voxels per macrocell
+        assert_eq!(MacroGrid::bytes([257, 257, 257]), 32 * 32 * 32 * 8);
+        assert_eq!(MacroGrid::bytes([1, 1, 1]), 8);
+    }
+}

@@ -1,0 +1,310 @@
+//! Normalised voxel reads and grid gradients: what every reconstruction filter is
+//! built on.
+
+use glam::{DMat3, DVec3};
+
+use super::{filter, GradientMethod, Normalize};
+use crate::volume::{ScalarType, Voxel, Voxels};
+
+/// The normalised value of every possible voxel value of `T`, for 8- and 16-bit
+/// types (empty for the others, which normalise each voxel as it is read).
+pub fn normalisation_table<T: Voxel>(norm: Normalize) -> Vec<f32> {
+    (0..T::LUT_SIZE)
+        .map(|i| norm.apply(T::lut_value(i)))
+        .collect()
+}
+
+/// The normalised value of every bit pattern of an 8- or 16-bit voxel of type `ty`,
+/// indexed by the pattern read as `u8` / `u16` (so signed and unsigned data share
+/// one [`Grid`] over unsigned bits); `None` for the other types.
+pub fn bits_table(ty: ScalarType, norm: Normalize) -> Option<Vec<f32>> {
+    let table = |n: usize, value: &dyn Fn(usize) -> f64| -> Vec<f32> {
+        (0..n).map(|b| norm.apply(value(b))).collect()
+    };
+    Some(match ty {
+        ScalarType::Uint8 => table(256, &|b| b as f64),
+        ScalarType::Int8 => table(256, &|b| f64::from(b as u8 as i8)),
+        ScalarType::Uint16 => table(65536, &|b| b as f64),
+        ScalarType::Int16 => table(65536, &|b| f64::from(b as u16 as i16)),
+        _ => return None,
+    })
+}
+
+/// Native-typed voxels read as normalised values in [0, 1]: the voxels, the grid's
+/// sizes and strides, and the value window (a table load per voxel for 8- and
+/// 16-bit data, see [`normalisation_table`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Grid<'a, T: Voxel> {
+    voxels: Voxels<'a, T>,
+    lut: &'a [f32],
+    norm: Normalize,
+    /// Voxels per axis.
+    pub n: [usize; 3],
+    /// Stride of y.
+    pub sx: usize,
+    /// Stride of z.
+    pub sxy: usize,
+    /// Per axis: the last voxel index as `f64` (positions are clamped to it).
+    last: [f64; 3],
+    /// Per axis: the last cell's first voxel (`n - 2`, or 0 on a one-voxel axis).
+    top: [usize; 3],
+    /// Per axis: the step to the cell's second voxel (the stride, or 0 on a
+    /// one-voxel axis).
+    step: [usize; 3],
+    /// XOR turning a table index into an index in the order of the values: the sign
+    /// bit for signed data read as unsigned bits, else 0.
+    flip: usize,
+}
+
+/// A trilinear cell and the position inside it: the flat index of its first voxel,
+/// the offsets to the next voxel along x, y and z, and the fractions.
+#[derive(Clone, Copy, Debug)]
+pub struct CellPosition {
+    /// Flat index of the cell's first voxel.
+    pub base: usize,
+    /// Offsets to the next voxel along x, y and z (0 on a one-voxel axis).
+    pub d: [usize; 3],
+    /// The position's fraction of the way across the cell, per axis.
+    pub f: [f32; 3],
+}
+
+impl<'a, T: Voxel> Grid<'a, T> {
+    /// The grid of `voxels` (x fastest, `n` per axis); `lut` is
+    /// [`normalisation_table`] of `norm`.
+    pub fn new(voxels: Voxels<'a, T>, n: [usize; 3], norm: Normalize, lut: &'a [f32]) -> Self {
+        assert_eq!(
+            voxels.len(),
+            n[0] * n[1] * n[2],
+            "data length matches the sizes"
+        );
+        assert_eq!(lut.len(), T::LUT_SIZE, "normalisation table of the type");
+        let stride = [1, n[0], n[0] * n[1]];
+        Grid {
+            voxels,
+            lut,
+            norm,
+            n,
+            sx: n[0],
+            sxy: n[0] * n[1],
+            last: n.map(|n| n.saturating_sub(1) as f64),
+            top: n.map(|n| n.saturating_sub(2)),
+            step: std::array::from_fn(|a| if n[a] >= 2 { stride[a] } else { 0 }),
+            flip: 0,
+        }
+    }
+
+    /// The grid of signed 8- or 16-bit data read as the unsigned bits `T` (whose
+    /// normalisation table, [`bits_table`], is indexed by bits).
+    pub fn signed_bits(self) -> Self {
+        Grid {
+            flip: T::LUT_SIZE / 2,
+            ..self
+        }
+    }
+
+    /// The trilinear cell holding index-space position `p` (clamped to the grid;
+    /// NaN counts as 0), and the fractions.
+    #[inline(always)]
+    pub fn locate(&self, p: [f64; 3]) -> CellPosition {
+        let mut base = 0;
+        let mut f = [0.0f32; 3];
+        let stride = [1, self.sx, self.sxy];
+        for a in 0..3 {
+            // `x > 0` is false for NaN; both comparisons compile to max/min
+            let x = if p[a] > 0.0 { p[a] } else { 0.0 };
+            let x = if x < self.last[a] { x } else { self.last[a] };
+            // SAFETY: `x` is finite and in [0, n - 1], which an i64 holds (a volume
+            // has fewer than 2^63 voxels); one instruction, where a checked or an
+            // unsigned conversion takes several.
+            let i = (unsafe { x.to_int_unchecked::<i64>() } as usize).min(self.top[a]);
+            f[a] = (x - i as f64) as f32;
+            base += i * stride[a];
+        }
+        CellPosition {
+            base,
+            d: self.step,
+            f,
+        }
+    }
+
+    /// The value window.
+    pub fn norm(&self) -> Normalize {
+        self.norm
+    }
+
+    /// Normalised value of one raw voxel.
+    #[inline(always)]
+    fn normalise(&self, v: T) -> f32 {
+        if T::LUT_SIZE > 0 {
+            let i = v.lut_index();
+            debug_assert!(i < self.lut.len());
+            // SAFETY: `new` checked `lut.len() == T::LUT_SIZE`, and `lut_index` is
+            // below `LUT_SIZE` for every value (the sealed `Voxel` implementations).
+            unsafe { *self.lut.get_unchecked(i) }
+        } else {
+            self.norm.apply(v.to_f64())
+        }
+    }
+
+    /// Normalised voxel at a flat index.
+    #[inline(always)]
+    pub fn at(&self, idx: usize) -> f32 {
+        self.normalise(self.voxels.get(idx))
+    }
+
+    /// The normalised voxels at the corners of a trilinear cell (see
+    /// [`Voxels::corners`]), one bounds check.
+    #[inline(always)]
+    pub fn corners(&self, base: usize, dx: usize, dy: usize, dz: usize) -> [f32; 8] {
+        let [a, b, c, d, e, f, g, h] = self.voxels.corners(base, dx, dy, dz);
+        [
+            self.normalise(a),
+            self.normalise(b),
+            self.normalise(c),
+            self.normalise(d),
+            self.normalise(e),
+            self.normalise(f),
+            self.normalise(g),
+            self.normalise(h),
+        ]
+    }
+
+    /// The range `[min, max]` of the normalised values of the `len` voxels from flat
+    /// index `start` along x (NaN counts as 0, as when it is read). For 8- and 16-bit
+    /// data, the extremes of the raw values, normalised (the table is monotone in the
+    /// value).
+    pub fn run_range(&self, start: usize, len: usize) -> [f32; 2] {
+        let run = self.voxels.slice(start, len);
+        if T::LUT_SIZE > 0 {
+            let (mut lo, mut hi) = (usize::MAX, 0);
+            for v in run.iter() {
+                let k = v.lut_index() ^ self.flip;
+                lo = lo.min(k);
+                hi = hi.max(k);
+            }
+            [self.lut[lo ^ self.flip], self.lut[hi ^ self.flip]]
+        } else {
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            for v in run.iter() {
+                // normalised values are never NaN: plain comparisons are min and max
+                let v = self.normalise(v);
+                lo = if v < lo { v } else { lo };
+                hi = if v > hi { v } else { hi };
+            }
+            [lo, hi]
+        }
+    }
+
+    /// Normalised voxel at an in-range index.
+    #[inline(always)]
+    pub fn voxel(&self, i: usize, j: usize, k: usize) -> f32 {
+        self.at(i + self.sx * j + self.sxy * k)
+    }
+
+    /// Normalised voxel with indices clamped to the grid.
+    #[inline(always)]
+    pub fn voxel_clamped(&self, i: isize, j: isize, k: isize) -> f32 {
+        self.voxel(
+            clamp_index(i, self.n[0]),
+            clamp_index(j, self.n[1]),
+            clamp_index(k, self.n[2]),
+        )
+    }
+
+    /// The normalised voxels at the eight corners of cell `c` (an axis of a single
+    /// voxel repeats voxel 0), corner `(a, b, c)` at index `a + 2 b + 4 c`.
+    #[inline]
+    pub fn cell_corners(&self, [i, j, k]: [usize; 3]) -> [f32; 8] {
+        let step = |x: usize, n: usize| usize::from(x + 1 < n);
+        let base = i + self.sx * j + self.sxy * k;
+        let (dx, dy, dz) = (
+            step(i, self.n[0]),
+            self.sx * step(j, self.n[1]),
+            self.sxy * step(k, self.n[2]),
+        );
+        self.corners(base, dx, dy, dz)
+    }
+}
+
+/// Where gradients come from: the estimator, an optional precomputed gradient
+/// volume, and the map from index-space to world-space gradients (the
+/// inverse-transpose of the grid's axis matrix, so anisotropic and sheared grids
+/// get each axis' own spacing).
+#[derive(Clone, Copy, Debug)]
+pub struct Gradients<'a> {
+    /// The estimator.
+    pub method: GradientMethod,
+    /// Precomputed index-space gradients at the voxels, when the plan made them.
+    pub volume: Option<&'a [[f32; 3]]>,
+    /// World gradient = this matrix times the index-space gradient.
+    pub world_from_index: DMat3,
+}
+
+impl<'a> Gradients<'a> {
+    /// Gradients by `method` (on the fly unless `volume` is given) for a grid whose
+    /// inverse axis matrix is `index_from_world`.
+    pub fn new(
+        method: GradientMethod,
+        volume: Option<&'a [[f32; 3]]>,
+        index_from_world: DMat3,
+    ) -> Gradients<'a> {
+        Gradients {
+            method,
+            volume,
+            world_from_index: index_from_world.transpose(),
+        }
+    }
+
+    /// Index-space gradient at voxel (i, j, k) by the estimator.
+    fn at_voxel<T: Voxel>(&self, grid: &Grid<T>, i: usize, j: usize, k: usize) -> [f32; 3] {
+        if let Some(g) = self.volume {
+            return g[i + grid.sx * j + grid.sxy * k];
+        }
+        filter::grid_gradient(self.method, grid.n, [i, j, k], |a, b, c| {
+            grid.voxel_clamped(a, b, c)
+        })
+    }
+
+    /// The world gradient at `p`: the voxel gradients trilinearly interpolated.
+    pub fn interpolated<T: Voxel>(&self, grid: &Grid<T>, p: DVec3) -> DVec3 {
+        let (i0, i1, fx) = cell(p.x, grid.n[0]);
+        let (j0, j1, fy) = cell(p.y, grid.n[1]);
+        let (k0, k1, fz) = cell(p.z, grid.n[2]);
+        let mut g = [0.0f64; 3];
+        for (k, wk) in [(k0, 1.0 - fz), (k1, fz)] {
+            for (j, wj) in [(j0, 1.0 - fy), (j1, fy)] {
+                for (i, wi) in [(i0, 1.0 - fx), (i1, fx)] {
+                    let w = (wi * wj * wk) as f64;
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let v = self.at_voxel(grid, i, j, k);
+                    for a in 0..3 {
+                        g[a] += w * v[a] as f64;
+                    }
+                }
+            }
+        }
+        self.world_from_index * DVec3::from_array(g)
+    }
+}
+
+#[inline(always)]
+pub(super) fn clamp_index(i: isize, n: usize) -> usize {
+    i.clamp(0, n as isize - 1) as usize
+}
+
+/// The cell `[i0, i1]` containing coordinate `x` on an axis of `n` voxels, and the
+/// fraction of the way from `i0` to `i1` (positions outside the grid clamp to it).
+#[inline(always)]
+pub(super) fn cell(x: f64, n: usize) -> (usize, usize, f32) {
+    if n < 2 {
+        return (0, 0, 0.0);
+    }
+    let max = (n - 1) as f64;
+    // NaN fails `x > 0` and maps to 0; for x >= 0, truncation is floor (and an
+    // inlined conversion, where `floor` is a library call on baseline x86-64)
+    let x = if x > 0.0 { x.min(max) } else { 0.0 };
+    let i0 = (x as usize).min(n - 2);
+    (i0, i0 + 1, (x - i0 as f64) as f32)
+}

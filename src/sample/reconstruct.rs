@@ -1,0 +1,381 @@
+//! The reconstruction filters as concrete [`Field`]s, one type per filter, so the
+//! renderer's inner loop is compiled once per (voxel type, filter) with no match per
+//! sample; and [`Sampler`], which picks the filter at run time (for tools and tests).
+
+use glam::{DMat3, DVec3};
+
+use super::grid::{normalisation_table, Gradients, Grid};
+use super::{Field, GradientMethod, Interpolation, Normalize};
+use crate::volume::{Voxel, Voxels};
+
+/// The nearest voxel.
+#[derive(Clone, Copy, Debug)]
+pub struct Nearest<'a, T: Voxel> {
+    /// The voxels.
+    pub grid: Grid<'a, T>,
+    /// Gradient source (for shading).
+    pub gradients: Gradients<'a>,
+}
+
+/// Trilinear interpolation of the 8 voxels around the position.
+#[derive(Clone, Copy, Debug)]
+pub struct Trilinear<'a, T: Voxel> {
+    /// The voxels.
+    pub grid: Grid<'a, T>,
+    /// Gradient source (for shading).
+    pub gradients: Gradients<'a>,
+}
+
+/// The smoothing cubic B-spline on the voxels themselves (64 voxels).
+#[derive(Clone, Copy, Debug)]
+pub struct BSpline<'a, T: Voxel> {
+    /// The voxels.
+    pub grid: Grid<'a, T>,
+    /// Gradient source (for shading).
+    pub gradients: Gradients<'a>,
+}
+
+/// The interpolating cubic B-spline: the B-spline over prefiltered coefficients.
+/// Its values do not depend on the voxels' type (the coefficients are `f32`), so it
+/// is one type for all of them; grid gradients and cell corners, read once per hit
+/// at most, come from the voxels through `voxels`.
+pub struct Cubic<'a> {
+    /// Prefiltered coefficients of the normalised voxels ([`super::prefilter_cubic`]).
+    pub coefficients: &'a [f32],
+    /// Voxels per axis.
+    pub n: [usize; 3],
+    /// How gradients are estimated (`Analytic`: the spline's own derivative).
+    pub method: GradientMethod,
+    /// World gradient = this matrix times the index-space gradient.
+    pub world_from_index: DMat3,
+    /// The voxels, for grid gradients and cell corners.
+    pub voxels: Box<dyn Field + 'a>,
+}
+
+impl<T: Voxel> Field for Nearest<'_, T> {
+    fn sizes(&self) -> [usize; 3] {
+        self.grid.n
+    }
+
+    #[inline(always)]
+    fn value(&self, p: DVec3) -> f32 {
+        let n = self.grid.n;
+        let idx = |x: f64, n: usize| ((x + 0.5).max(0.0) as usize).min(n - 1);
+        self.grid
+            .voxel(idx(p.x, n[0]), idx(p.y, n[1]), idx(p.z, n[2]))
+    }
+
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        self.gradients.interpolated(&self.grid, p)
+    }
+
+    fn cell_corners(&self, c: [usize; 3]) -> [f32; 8] {
+        self.grid.cell_corners(c)
+    }
+}
+
+impl<T: Voxel> Field for Trilinear<'_, T> {
+    fn sizes(&self) -> [usize; 3] {
+        self.grid.n
+    }
+
+    #[inline(always)]
+    fn value(&self, p: DVec3) -> f32 {
+        let g = &self.grid;
+        let c = g.locate(p.to_array());
+        let [dx, dy, dz] = c.d;
+        let [fx, fy, fz] = c.f;
+        let [c000, c100, c010, c110, c001, c101, c011, c111] = g.corners(c.base, dx, dy, dz);
+        let x00 = lerp(c000, c100, fx);
+        let x10 = lerp(c010, c110, fx);
+        let x01 = lerp(c001, c101, fx);
+        let x11 = lerp(c011, c111, fx);
+        lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz).clamp(0.0, 1.0)
+    }
+
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        self.gradients.interpolated(&self.grid, p)
+    }
+
+    #[inline]
+    fn cell_corners(&self, c: [usize; 3]) -> [f32; 8] {
+        self.grid.cell_corners(c)
+    }
+}
+
+impl<T: Voxel> Field for BSpline<'_, T> {
+    fn sizes(&self) -> [usize; 3] {
+        self.grid.n
+    }
+
+    #[inline]
+    fn value(&self, p: DVec3) -> f32 {
+        let g = &self.grid;
+        bspline(g.n, p, |i, j, k| g.voxel(i, j, k))
+    }
+
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        let g = &self.grid;
+        if self.gradients.method == GradientMethod::Analytic {
+            self.gradients.world_from_index * bspline_gradient(g.n, p, |i, j, k| g.voxel(i, j, k))
+        } else {
+            self.gradients.interpolated(g, p)
+        }
+    }
+
+    fn cell_corners(&self, c: [usize; 3]) -> [f32; 8] {
+        self.grid.cell_corners(c)
+    }
+}
+
+impl Field for Cubic<'_> {
+    fn sizes(&self) -> [usize; 3] {
+        self.n
+    }
+
+    #[inline]
+    fn value(&self, p: DVec3) -> f32 {
+        let (c, sx, sxy) = (self.coefficients, self.n[0], self.n[0] * self.n[1]);
+        bspline(self.n, p, |i, j, k| c[i + sx * j + sxy * k])
+    }
+
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        if self.method == GradientMethod::Analytic {
+            let (c, sx, sxy) = (self.coefficients, self.n[0], self.n[0] * self.n[1]);
+            self.world_from_index * bspline_gradient(self.n, p, |i, j, k| c[i + sx * j + sxy * k])
+        } else {
+            self.voxels.gradient(p)
+        }
+    }
+
+    fn cell_corners(&self, c: [usize; 3]) -> [f32; 8] {
+        self.voxels.cell_corners(c)
+    }
+}
+
+impl<F: Field + ?Sized> Field for Box<F> {
+    fn sizes(&self) -> [usize; 3] {
+        (**self).sizes()
+    }
+    #[inline(always)]
+    fn value(&self, p: DVec3) -> f32 {
+        (**self).value(p)
+    }
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        (**self).gradient(p)
+    }
+    #[inline(always)]
+    fn cell_corners(&self, c: [usize; 3]) -> [f32; 8] {
+        (**self).cell_corners(c)
+    }
+}
+
+/// A reconstruction chosen at run time: owns its normalisation table and
+/// dispatches on the filter at every call. For tools and tests; the renderer uses
+/// the concrete filters.
+pub struct Sampler<'a, T: Voxel> {
+    voxels: Voxels<'a, T>,
+    lut: Vec<f32>,
+    n: [usize; 3],
+    norm: Normalize,
+    interpolation: Interpolation,
+    coefficients: Option<&'a [f32]>,
+    method: GradientMethod,
+    gradients: Option<&'a [[f32; 3]]>,
+    index_from_world: DMat3,
+}
+
+impl<'a, T: Voxel> Sampler<'a, T> {
+    /// A sampler over `data` (x fastest, `n` voxels per axis).
+    ///
+    /// `index_from_world` is the inverse of the grid's axis matrix (used to express
+    /// gradients in world units). `coefficients` must be given for
+    /// `Interpolation::Cubic` (see [`super::prefilter_cubic`]); `gradients`, when given,
+    /// replaces the on-the-fly gradient (see [`super::gradient_volume`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        data: impl Into<Voxels<'a, T>>,
+        n: [usize; 3],
+        norm: Normalize,
+        interpolation: Interpolation,
+        coefficients: Option<&'a [f32]>,
+        gradient: GradientMethod,
+        gradients: Option<&'a [[f32; 3]]>,
+        index_from_world: DMat3,
+    ) -> Sampler<'a, T> {
+        let voxels = data.into();
+        let count = n[0] * n[1] * n[2];
+        assert_eq!(voxels.len(), count, "data length matches the sizes");
+        assert!(
+            interpolation != Interpolation::Cubic || coefficients.is_some_and(|c| c.len() == count),
+            "cubic interpolation needs prefiltered coefficients of the same size"
+        );
+        assert!(
+            gradients.is_none_or(|g| g.len() == count),
+            "gradient volume matches the sizes"
+        );
+        Sampler {
+            voxels,
+            lut: normalisation_table::<T>(norm),
+            n,
+            norm,
+            interpolation,
+            coefficients,
+            method: gradient,
+            gradients,
+            index_from_world,
+        }
+    }
+
+    fn grid(&self) -> Grid<'_, T> {
+        Grid::new(self.voxels, self.n, self.norm, &self.lut)
+    }
+
+    fn grads(&self) -> Gradients<'a> {
+        Gradients::new(self.method, self.gradients, self.index_from_world)
+    }
+
+    /// Calls `f` with the concrete filter.
+    fn with<R>(&self, f: impl FnOnce(&dyn Field) -> R) -> R {
+        let (grid, gradients) = (self.grid(), self.grads());
+        match self.interpolation {
+            Interpolation::Nearest => f(&Nearest { grid, gradients }),
+            Interpolation::Trilinear => f(&Trilinear { grid, gradients }),
+            Interpolation::BSpline => f(&BSpline { grid, gradients }),
+            Interpolation::Cubic => f(&Cubic {
+                coefficients: self.coefficients.expect("checked in Sampler::new"),
+                n: self.n,
+                method: self.method,
+                world_from_index: gradients.world_from_index,
+                voxels: Box::new(Trilinear { grid, gradients }),
+            }),
+        }
+    }
+}
+
+impl<T: Voxel> Field for Sampler<'_, T> {
+    fn sizes(&self) -> [usize; 3] {
+        self.n
+    }
+
+    fn value(&self, p: DVec3) -> f32 {
+        self.with(|f| f.value(p))
+    }
+
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        self.with(|f| f.gradient(p))
+    }
+
+    fn cell_corners(&self, c: [usize; 3]) -> [f32; 8] {
+        self.grid().cell_corners(c)
+    }
+}
+
+#[inline(always)]
+fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    a + (b - a) * t
+}
+
+/// The cubic B-spline over `get` (mirror boundary, matching the prefilter), clamped
+/// to [0, 1] (the interpolating spline may overshoot the voxel values slightly).
+#[inline(always)]
+fn bspline(n: [usize; 3], p: DVec3, get: impl Fn(usize, usize, usize) -> f32) -> f32 {
+    let (ix, wx) = bspline_weights(p.x, n[0]);
+    let (iy, wy) = bspline_weights(p.y, n[1]);
+    let (iz, wz) = bspline_weights(p.z, n[2]);
+    let mut sum = 0.0f64;
+    for c in 0..4 {
+        let mut sy = 0.0f64;
+        for b in 0..4 {
+            let mut sx = 0.0f64;
+            for a in 0..4 {
+                sx += wx[a] * get(ix[a], iy[b], iz[c]) as f64;
+            }
+            sy += wy[b] * sx;
+        }
+        sum += wz[c] * sy;
+    }
+    (sum as f32).clamp(0.0, 1.0)
+}
+
+/// Index-space gradient of the cubic B-spline over `get` (the derivative of the
+/// same spline [`bspline`] evaluates, mirror boundary).
+fn bspline_gradient(n: [usize; 3], p: DVec3, get: impl Fn(usize, usize, usize) -> f32) -> DVec3 {
+    let (ix, wx, dx) = bspline_weights_and_derivatives(p.x, n[0]);
+    let (iy, wy, dy) = bspline_weights_and_derivatives(p.y, n[1]);
+    let (iz, wz, dz) = bspline_weights_and_derivatives(p.z, n[2]);
+    let mut g = DVec3::ZERO;
+    for c in 0..4 {
+        let (mut gx, mut gy, mut gv) = (0.0f64, 0.0f64, 0.0f64);
+        for b in 0..4 {
+            let (mut sx, mut sv) = (0.0f64, 0.0f64);
+            for a in 0..4 {
+                let v = get(ix[a], iy[b], iz[c]) as f64;
+                sx += dx[a] * v;
+                sv += wx[a] * v;
+            }
+            gx += wy[b] * sx;
+            gy += dy[b] * sv;
+            gv += wy[b] * sv;
+        }
+        g += DVec3::new(wz[c] * gx, wz[c] * gy, dz[c] * gv);
+    }
+    g
+}
+
+/// Mirror-boundary index (…, 2, 1, 0, 1, 2, …, n-1, n-2, …).
+#[inline(always)]
+fn mirror(i: isize, n: usize) -> usize {
+    if n < 2 {
+        return 0;
+    }
+    let period = 2 * (n as isize - 1);
+    let m = i.rem_euclid(period);
+    (if m >= n as isize { period - m } else { m }) as usize
+}
+
+/// The four indices, cubic B-spline weights and their derivatives for coordinate
+/// `x`; outside the grid the position is clamped, so the derivative there is that
+/// of the boundary point.
+#[inline(always)]
+fn bspline_weights_and_derivatives(x: f64, n: usize) -> ([usize; 4], [f64; 4], [f64; 4]) {
+    let (idx, w) = bspline_weights(x, n);
+    let max = (n.max(1) - 1) as f64;
+    let x = if x > 0.0 { x.min(max) } else { 0.0 };
+    let t = x - x as usize as f64;
+    let t2 = t * t;
+    let d = [
+        -0.5 * (1.0 - t) * (1.0 - t),
+        1.5 * t2 - 2.0 * t,
+        -1.5 * t2 + t + 0.5,
+        0.5 * t2,
+    ];
+    (idx, w, d)
+}
+
+/// The four indices and cubic B-spline weights for coordinate `x`.
+#[inline(always)]
+fn bspline_weights(x: f64, n: usize) -> ([usize; 4], [f64; 4]) {
+    let max = (n.max(1) - 1) as f64;
+    let x = if x > 0.0 { x.min(max) } else { 0.0 };
+    let i = x as usize as f64;
+    let t = x - i;
+    let i = i as isize;
+    let t2 = t * t;
+    let t3 = t2 * t;
+    let w = [
+        (1.0 - t).powi(3) / 6.0,
+        (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0,
+        (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0,
+        t3 / 6.0,
+    ];
+    (
+        [
+            mirror(i - 1, n),
+            mirror(i, n),
+            mirror(i + 1, n),
+            mirror(i + 2, n),
+        ],
+        w,
+    )
+}
