@@ -49,7 +49,7 @@ use crate::shade::{Light, LightKind, Shader};
 use crate::transfer::{Table1D, Table2D};
 use crate::views::{frames_per_batch, ViewKey};
 use crate::volume::{Limits, Stats, Volume, VolumeHeader, Voxel};
-use crate::with_volume_data;
+use crate::with_voxels;
 
 /// Reports progress in units of finished (pass, frame) images.
 pub trait Progress: Sync {
@@ -162,7 +162,7 @@ pub fn render(
             prepare: &prepare,
             sink: &sink,
         };
-        let s = with_volume_data!(&volume.data, v => render_typed(scene, &plan, &volume.header, v, norm, &jobs, &emit))?;
+        let s = with_voxels!(&volume.data, v => render_typed(scene, &plan, &volume.header, &v.to_slice(), norm, &jobs, &emit))?;
         summary = Summary {
             skipped: summary.skipped,
             ..s
@@ -222,7 +222,7 @@ pub fn render_films(
         prepare: &|| Ok(()),
         sink: &sink,
     };
-    let mut summary = with_volume_data!(&volume.data, v => render_typed(scene, &plan, &volume.header, v, norm, &jobs, &emit))?;
+    let mut summary = with_voxels!(&volume.data, v => render_typed(scene, &plan, &volume.header, &v.to_slice(), norm, &jobs, &emit))?;
     summary.seconds = start.elapsed().as_secs_f64();
     let mut views = collected
         .into_inner()

@@ -3,8 +3,8 @@
 
 use rayon::prelude::*;
 
-use super::{VolumeData, Voxel};
-use crate::with_volume_data;
+use super::{VolumeData, Voxel, Voxels};
+use crate::with_voxels;
 
 /// Number of histogram bins in [`Stats::histogram`].
 pub const HISTOGRAM_BINS: usize = 64;
@@ -28,9 +28,11 @@ pub struct Stats {
 
 impl Stats {
     /// Computes the statistics (two passes over the data, in parallel chunks whose
-    /// results are combined in a fixed order, so the result is deterministic).
+    /// results are combined in a fixed order, so the result is deterministic and the
+    /// same for owned and mapped data). Mapped data is streamed from the page cache
+    /// chunk by chunk, never copied.
     pub fn of(data: &VolumeData) -> Stats {
-        with_volume_data!(data, v => stats_of(v))
+        with_voxels!(data, v => stats_of(v))
     }
 
     /// The value at quantile `q` in [0, 1], read off the histogram (bin resolution).
@@ -54,7 +56,15 @@ impl Stats {
 
 const CHUNK: usize = 1 << 16;
 
-fn stats_of<T: Voxel>(v: &[T]) -> Stats {
+/// The voxels of `v` in consecutive chunks of `CHUNK` (the last one shorter), as a
+/// parallel iterator in index order.
+fn par_chunks<T: Voxel>(v: Voxels<'_, T>) -> impl IndexedParallelIterator<Item = Voxels<'_, T>> {
+    (0..v.len().div_ceil(CHUNK))
+        .into_par_iter()
+        .map(move |c| v.slice(c * CHUNK..((c + 1) * CHUNK).min(v.len())))
+}
+
+fn stats_of<T: Voxel>(v: Voxels<'_, T>) -> Stats {
     #[derive(Clone, Copy)]
     struct Acc {
         min: f64,
@@ -63,8 +73,7 @@ fn stats_of<T: Voxel>(v: &[T]) -> Stats {
         finite: usize,
         non_finite: usize,
     }
-    let parts: Vec<Acc> = v
-        .par_chunks(CHUNK)
+    let parts: Vec<Acc> = par_chunks(v)
         .map(|c| {
             let mut a = Acc {
                 min: f64::INFINITY,
@@ -73,7 +82,7 @@ fn stats_of<T: Voxel>(v: &[T]) -> Stats {
                 finite: 0,
                 non_finite: 0,
             };
-            for &x in c {
+            for x in c.iter() {
                 let x = x.to_f64();
                 if x.is_finite() {
                     a.min = a.min.min(x);
@@ -117,11 +126,10 @@ fn stats_of<T: Voxel>(v: &[T]) -> Stats {
     } else {
         0.0
     };
-    let histogram = v
-        .par_chunks(CHUNK)
+    let histogram = par_chunks(v)
         .map(|c| {
             let mut h = vec![0u64; HISTOGRAM_BINS];
-            for &x in c {
+            for x in c.iter() {
                 let x = x.to_f64();
                 if x.is_finite() {
                     let b = (((x - lo) * scale) as usize).min(HISTOGRAM_BINS - 1);
