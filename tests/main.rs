@@ -10,5 +10,6 @@ mod cli;
 mod determinism;
 mod geometry;
 mod hard_cases;
+mod mapping;
 mod nrrd;
 mod stereo;

@@ -602,6 +602,42 @@ mod tests {
     }
 
     #[test]
+    fn views_at_any_alignment() {
+        let values = [1u16, 0xfffe, 300, 7];
+        let mut bytes = vec![0u8];
+        for v in values {
+            bytes.extend(v.to_ne_bytes());
+        }
+        // the same bytes at an odd and at an even address
+        let aligned = VolumeData::U16(values.to_vec());
+        let owned = aligned.voxels::<u16>().unwrap();
+        let odd = if bytes[1..].as_ptr().align_offset(2) == 0 {
+            bytes.push(0);
+            bytes.copy_within(1..9, 2);
+            Voxels::<u16>::from_bytes(&bytes[2..10])
+        } else {
+            Voxels::<u16>::from_bytes(&bytes[1..9])
+        };
+        assert!(owned.as_slice().is_some());
+        assert!(odd.as_slice().is_none());
+        assert!(matches!(odd.to_slice(), std::borrow::Cow::Owned(_)));
+        assert!(matches!(owned.to_slice(), std::borrow::Cow::Borrowed(_)));
+        assert_eq!(&*odd.to_slice(), &values[..]);
+        assert_eq!(odd.iter().collect::<Vec<_>>(), values);
+        assert_eq!(odd.slice(1..3).iter().collect::<Vec<_>>(), [0xfffe, 300]);
+        assert!(odd.slice(4..4).is_empty());
+        assert!(aligned.voxels::<i16>().is_none());
+        assert_eq!(aligned.get_f64(1), 65534.0);
+        assert_eq!((aligned.len(), aligned.byte_len()), (4, 8));
+        assert!(!aligned.is_mapped());
+        assert_ne!(aligned, VolumeData::I16(vec![1, -2, 300, 7]));
+        assert_ne!(
+            VolumeData::F32(vec![f32::NAN]),
+            VolumeData::F32(vec![f32::NAN])
+        );
+    }
+
+    #[test]
     fn decode_endianness() {
         let d = VolumeData::from_bytes(ScalarType::Int16, &[0x01, 0x02, 0xff, 0xff], false);
         assert_eq!(d, VolumeData::I16(vec![0x0102, -1]));
