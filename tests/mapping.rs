@@ -541,3 +541,48 @@ fn mapped_and_read_volumes_render_alike() {
     assert!(!mapped.is_empty());
     assert_eq!(mapped, read);
 }
+
+/// `--max-memory` limits what is read, not what is mapped: `check`, `render` and
+/// `info` accept a mapped volume larger than the limit and refuse the read one.
+#[test]
+fn max_memory_applies_to_read_volumes_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let values: Vec<f64> = (0..16 * 16 * 16).map(|i| (i % 97) as f64).collect();
+    let data = VolumeData::from_f64s(ScalarType::Uint16, &values);
+    write(&d.join("native.raw"), &[&bytes(&data, true)]);
+    write(&d.join("swapped.raw"), &[&bytes(&data, false)]);
+    for (name, file, endian) in [
+        ("native", "native.raw", native()),
+        ("swapped", "swapped.raw", swapped()),
+    ] {
+        std::fs::write(
+            d.join(format!("{name}.toml")),
+            format!(
+                "[volume]\npath = \"{file}\"\nsizes = [16, 16, 16]\ntype = \"uint16\"\nendian = \"{endian}\"\n\
+                 [image]\nsize = [8, 8]\nout = \"out/{name}\"\n[[render]]\nmode = \"mip\"\n"
+            ),
+        )
+        .unwrap();
+    }
+    let run = |args: &[&str]| {
+        let o = crate::util::volcast(d, args);
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stdout).into_owned(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    for cmd in ["check", "render", "info"] {
+        let (ok, out, err) = run(&[cmd, "native.toml", "--max-memory", "1K"]);
+        assert!(ok, "{cmd} native: {out}{err}");
+        if cmd == "info" {
+            assert!(out.contains("mapped from"), "{out}");
+        }
+        let (ok, out, err) = run(&[cmd, "swapped.toml", "--max-memory", "1K"]);
+        assert!(!ok, "{cmd} swapped: {out}");
+        assert!(err.contains("set --max-memory to raise it"), "{cmd}: {err}");
+    }
+    let (ok, out, _) = run(&["info", "swapped.toml", "--json"]);
+    assert!(ok && out.contains("\"storage\": \"read\""), "{out}");
+}
