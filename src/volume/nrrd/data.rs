@@ -369,7 +369,13 @@ impl Piece<'_> {
             _ => self.error(format_args!("cannot open data file: {e}")),
         })?;
         let meta = file.metadata().map_err(|e| self.io_error(e))?;
-        check_regular_file(self.path, &meta)?;
+        check_regular_file(self.path, &meta).map_err(|e| match e {
+            VolumeError::Unsupported { path, message } => VolumeError::Unsupported {
+                path,
+                message: format!("{message}{}", self.context()),
+            },
+            other => other,
+        })?;
         let mut r = BufReader::new(file);
         r.seek(SeekFrom::Start(start))
             .map_err(|e| self.io_error(e))?;
