@@ -124,7 +124,6 @@ $3
 EOF
 }
 scene large_mip_auto "" ""
-scene large_mip_windows "window = [0, 60000]" "window = [0.0, 1.0]"
 
 # measure LABEL CMD...: runs CMD, samples its memory, prints a summary.
 measure() {
@@ -180,6 +179,9 @@ echo "== volcast $("$VOLCAST" --version 2>/dev/null || echo "(no --version)"), $
 grep -E '^(MemTotal|MemAvailable|Cached)' /proc/meminfo
 "$VOLCAST" check "$LARGE_DIR/large_mip_auto.toml" --size "$SIZE" --threads "$THREADS" | sed 's/^/   /'
 measure info "$VOLCAST" info "$NHDR"
+# render B: the volume window that render A computes (the data's range, from info)
+range=$(awk '/^range / {print $2 ", " $4}' "$LARGE_DIR/info.out")
+scene large_mip_windows "window = [${range:-0, 65535}]" "window = [0.0, 1.0]"
 measure render_A "$VOLCAST" render "$LARGE_DIR/large_mip_auto.toml" --size "$SIZE" --threads "$THREADS"
 measure render_B "$VOLCAST" render "$LARGE_DIR/large_mip_windows.toml" --size "$SIZE" --threads "$THREADS"
 echo "logs and images in $LARGE_DIR"
