@@ -162,7 +162,7 @@ pub fn render(
             prepare: &prepare,
             sink: &sink,
         };
-        let s = with_voxels!(&volume.data, v => render_typed(scene, &plan, &volume.header, &v.to_slice(), norm, &jobs, &emit))?;
+        let s = with_voxels!(&volume.data, v => render_typed(scene, &plan, &volume.header, &v.to_aligned(limits)?, norm, &jobs, &emit))?;
         summary = Summary {
             skipped: summary.skipped,
             ..s
@@ -222,7 +222,7 @@ pub fn render_films(
         prepare: &|| Ok(()),
         sink: &sink,
     };
-    let mut summary = with_voxels!(&volume.data, v => render_typed(scene, &plan, &volume.header, &v.to_slice(), norm, &jobs, &emit))?;
+    let mut summary = with_voxels!(&volume.data, v => render_typed(scene, &plan, &volume.header, &v.to_aligned(limits)?, norm, &jobs, &emit))?;
     summary.seconds = start.elapsed().as_secs_f64();
     let mut views = collected
         .into_inner()

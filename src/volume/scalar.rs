@@ -316,16 +316,34 @@ impl<'a, T: Voxel> Voxels<'a, T> {
         Some(unsafe { std::slice::from_raw_parts(self.bytes.as_ptr().cast::<T>(), self.len) })
     }
 
-    /// The voxels as a typed slice for code that needs `&[T]`: borrowed when aligned
-    /// ([`Voxels::as_slice`]), otherwise copied into a new buffer of `len()` elements
-    /// (memory that is not counted against [`Limits`](super::Limits); only unaligned
-    /// mapped data, e.g. 16-bit voxels after an attached NRRD header of odd length,
-    /// needs the copy).
-    pub fn to_slice(&self) -> std::borrow::Cow<'a, [T]> {
-        match self.as_slice() {
-            Some(s) => std::borrow::Cow::Borrowed(s),
-            None => std::borrow::Cow::Owned(self.iter().collect()),
+    /// The voxels as a typed slice, for code that needs `&[T]` (the render core
+    /// before it reads [`Voxels`]): borrowed when aligned ([`Voxels::as_slice`]: owned
+    /// data, or mapped data at an offset that is a multiple of the alignment),
+    /// otherwise copied into a new buffer of `len()` elements, which is memory volcast
+    /// allocates and therefore checked against `limits` first. Only unaligned mapped
+    /// data (e.g. 16-bit voxels after an attached NRRD header of odd length) is copied.
+    pub fn to_aligned(
+        &self,
+        limits: &super::Limits,
+    ) -> Result<std::borrow::Cow<'a, [T]>, super::VolumeError> {
+        if let Some(s) = self.as_slice() {
+            return Ok(std::borrow::Cow::Borrowed(s));
         }
+        let bytes = self.bytes.len() as u64;
+        if bytes > limits.max_bytes {
+            return Err(super::VolumeError::TooLarge {
+                what: format!(
+                    "an aligned copy of the {} mapped {} voxels (they start at an offset of \
+                     the file that is not a multiple of {} bytes)",
+                    self.len,
+                    T::TYPE,
+                    std::mem::align_of::<T>()
+                ),
+                bytes: Some(bytes),
+                limit: limits.max_bytes,
+            });
+        }
+        Ok(std::borrow::Cow::Owned(self.iter().collect()))
     }
 }
 
@@ -620,9 +638,14 @@ mod tests {
         };
         assert!(owned.as_slice().is_some());
         assert!(odd.as_slice().is_none());
-        assert!(matches!(odd.to_slice(), std::borrow::Cow::Owned(_)));
-        assert!(matches!(owned.to_slice(), std::borrow::Cow::Borrowed(_)));
-        assert_eq!(&*odd.to_slice(), &values[..]);
+        let limits = super::super::Limits { max_bytes: 8 };
+        let copy = odd.to_aligned(&limits).unwrap();
+        assert!(matches!(copy, std::borrow::Cow::Owned(_)));
+        assert_eq!(&*copy, &values[..]);
+        let tight = super::super::Limits { max_bytes: 7 };
+        assert!(odd.to_aligned(&tight).is_err());
+        let borrowed = owned.to_aligned(&tight).unwrap();
+        assert!(matches!(borrowed, std::borrow::Cow::Borrowed(_)));
         assert_eq!(odd.iter().collect::<Vec<_>>(), values);
         assert_eq!(odd.slice(1..3).iter().collect::<Vec<_>>(), [0xfffe, 300]);
         assert!(odd.slice(4..4).is_empty());
