@@ -84,8 +84,10 @@ pub struct Plan {
     pub preview: (usize, usize),
     /// World length of one voxel of the smallest spacing.
     pub voxel_length: f64,
-    /// Bytes of the voxels.
+    /// Bytes of the voxels volcast allocates (0 when they are mapped).
     pub volume_bytes: u64,
+    /// Where the voxels come from: mapped from a file, or read into memory.
+    pub storage: crate::volume::Storage,
     /// Bytes of all precomputed volumes and tables.
     pub precomputed_bytes: u64,
     /// Bytes allocated only while the precomputations are built (the prefilter's
@@ -170,6 +172,7 @@ impl Plan {
             .into_iter()
             .fold(f64::INFINITY, f64::min);
         let voxels = header.voxel_count() as u64;
+        let storage = scene.volume.source.storage()?;
         let index_from_world = geometry
             .index_from_world_matrix()
             .expect("checked by is_valid above");
@@ -249,7 +252,8 @@ impl Plan {
             sphere,
             preview: (width.div_ceil(4).max(8), height.div_ceil(4).max(8)),
             voxel_length,
-            volume_bytes: header.data_bytes(),
+            volume_bytes: storage.allocated_bytes(),
+            storage,
             precomputed_bytes,
             transient_bytes,
             film_bytes,
@@ -371,11 +375,20 @@ impl Plan {
         } else {
             String::new()
         };
+        let volume = match &self.storage {
+            crate::volume::Storage::Mapped { path, bytes, .. } => format!(
+                "volume mapped, not allocated: {} of {}",
+                human_bytes(*bytes),
+                path.display()
+            ),
+            crate::volume::Storage::Read { bytes, reason } => {
+                format!("volume {} read into memory ({reason})", human_bytes(*bytes))
+            }
+        };
         let _ = writeln!(
             s,
-            "memory   about {} (volume {}, precomputed {}, images in flight {} for {} threads{transient})",
+            "memory   about {} allocated ({volume}; precomputed {}; images in flight {} for {} threads{transient})",
             human_bytes(self.memory_bytes()),
-            human_bytes(self.volume_bytes),
             human_bytes(self.precomputed_bytes),
             human_bytes(self.film_bytes),
             self.threads

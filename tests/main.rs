@@ -10,6 +10,7 @@ mod cli;
 mod determinism;
 mod geometry;
 mod hard_cases;
+mod mapping;
 mod nrrd;
 mod skipping;
 mod stereo;

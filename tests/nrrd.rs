@@ -45,17 +45,18 @@ enum Exact {
 }
 
 fn exact(d: &VolumeData) -> Exact {
-    match d {
-        VolumeData::I8(v) => Exact::Int(v.iter().map(|&x| x.into()).collect()),
-        VolumeData::U8(v) => Exact::Int(v.iter().map(|&x| x.into()).collect()),
-        VolumeData::I16(v) => Exact::Int(v.iter().map(|&x| x.into()).collect()),
-        VolumeData::U16(v) => Exact::Int(v.iter().map(|&x| x.into()).collect()),
-        VolumeData::I32(v) => Exact::Int(v.iter().map(|&x| x.into()).collect()),
-        VolumeData::U32(v) => Exact::Int(v.iter().map(|&x| x.into()).collect()),
-        VolumeData::I64(v) => Exact::Int(v.iter().map(|&x| x.into()).collect()),
-        VolumeData::U64(v) => Exact::Int(v.iter().map(|&x| x.into()).collect()),
-        VolumeData::F32(v) => Exact::Float(v.iter().map(|&x| x.into()).collect()),
-        VolumeData::F64(v) => Exact::Float(v.clone()),
+    use volcast::volume::TypedVoxels as T;
+    match d.typed() {
+        T::I8(v) => Exact::Int(v.iter().map(i128::from).collect()),
+        T::U8(v) => Exact::Int(v.iter().map(i128::from).collect()),
+        T::I16(v) => Exact::Int(v.iter().map(i128::from).collect()),
+        T::U16(v) => Exact::Int(v.iter().map(i128::from).collect()),
+        T::I32(v) => Exact::Int(v.iter().map(i128::from).collect()),
+        T::U32(v) => Exact::Int(v.iter().map(i128::from).collect()),
+        T::I64(v) => Exact::Int(v.iter().map(i128::from).collect()),
+        T::U64(v) => Exact::Int(v.iter().map(i128::from).collect()),
+        T::F32(v) => Exact::Float(v.iter().map(f64::from).collect()),
+        T::F64(v) => Exact::Float(v.iter().collect()),
     }
 }
 
@@ -668,7 +669,18 @@ fn hostile_sizes_fail_fast_with_little_memory() {
         "{e}"
     );
 
-    // Within default limits a big header is refused by the limit itself.
+    // Native-order raw data is mapped, not allocated: the memory limit does not apply,
+    // the length check does.
+    let e = nrrd::read(&p, &Limits { max_bytes: 1 << 20 }).unwrap_err();
+    assert!(matches!(e, VolumeError::Data { .. }), "{e}");
+    assert!(e.to_string().contains("got 4"), "{e}");
+
+    // Data that has to be read (here byte-swapped) is refused by the limit itself.
+    let p = temp_file(
+        dir.path(),
+        "raw_big.nrrd",
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2000 2000 2000\nendian: big\nencoding: raw\n\n1234",
+    );
     let e = nrrd::read(&p, &Limits { max_bytes: 1 << 20 }).unwrap_err();
     assert!(
         matches!(
@@ -749,10 +761,11 @@ fn samples(ty: ScalarType, n: usize, ascii: bool) -> VolumeData {
 
 /// Bit-level view of data, so NaNs compare.
 fn bits(d: &VolumeData) -> Vec<u64> {
-    match d {
-        VolumeData::F32(v) => v.iter().map(|x| x.to_bits().into()).collect(),
-        VolumeData::F64(v) => v.iter().map(|x| x.to_bits()).collect(),
-        other => match exact(other) {
+    use volcast::volume::TypedVoxels as T;
+    match d.typed() {
+        T::F32(v) => v.iter().map(|x| x.to_bits().into()).collect(),
+        T::F64(v) => v.iter().map(|x| x.to_bits()).collect(),
+        _ => match exact(d) {
             Exact::Int(v) => v.iter().map(|&x| x as u64).collect(),
             Exact::Float(_) => unreachable!(),
         },

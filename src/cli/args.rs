@@ -67,6 +67,7 @@ pub struct SceneArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
     /// Largest voxel buffer to allocate, e.g. `8G`, `512M` (default: 16G or 3/4 of RAM).
+    /// Memory-mapped volumes (raw data in native byte order) do not count.
     #[arg(long, value_name = "BYTES", value_parser = parse_bytes)]
     pub max_memory: Option<u64>,
     /// Render the K-th of N interleaved parts of the frames (K from 0 to N-1): frames
@@ -129,7 +130,7 @@ pub struct InfoArgs {
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Largest voxel buffer to allocate, e.g. `8G`, `512M`.
+    /// Largest voxel buffer to allocate, e.g. `8G`, `512M` (mapped volumes do not count).
     #[arg(long, value_name = "BYTES", value_parser = parse_bytes)]
     pub max_memory: Option<u64>,
 }

@@ -25,6 +25,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
             "sizes": h.sizes,
             "type": h.scalar_type.nrrd_name(),
             "bytes": h.data_bytes(),
+            "storage": if volume.data.is_mapped() { "mapped" } else { "read" },
             "spacing": sp,
             "origin": h.geometry.origin.to_array(),
             "axes": h.geometry.axes.map(|a| a.to_array()),
@@ -48,12 +49,21 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
         "sizes      {nx} x {ny} x {nz} ({} voxels)",
         h.voxel_count()
     )?;
-    writeln!(
-        s,
-        "type       {} ({} in memory)",
-        h.scalar_type,
-        human_bytes(h.data_bytes())
-    )?;
+    match volume.data.mapped() {
+        Some(m) => writeln!(
+            s,
+            "type       {} ({} mapped from {})",
+            h.scalar_type,
+            human_bytes(h.data_bytes()),
+            m.path().display()
+        )?,
+        None => writeln!(
+            s,
+            "type       {} ({} in memory)",
+            h.scalar_type,
+            human_bytes(h.data_bytes())
+        )?,
+    }
     writeln!(s, "spacing    {} {} {}", sp[0], sp[1], sp[2])?;
     let o = h.geometry.origin;
     writeln!(s, "origin     {} {} {}", o.x, o.y, o.z)?;

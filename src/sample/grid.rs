@@ -174,7 +174,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// data, the extremes of the raw values, normalised (the table is monotone in the
     /// value).
     pub fn run_range(&self, start: usize, len: usize) -> [f32; 2] {
-        let run = self.voxels.slice(start, len);
+        let run = self.voxels.slice(start..start + len);
         if T::LUT_SIZE > 0 {
             let (mut lo, mut hi) = (usize::MAX, 0);
             for v in run.iter() {

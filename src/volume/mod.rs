@@ -5,11 +5,14 @@
 //!              --load()----> Volume        (data in its native type, limits checked first)
 //! ```
 //! Sources are NRRD files (attached or detached header, [`nrrd`]), headerless raw
-//! files ([`raw`]) and analytic fields sampled on a grid ([`synthetic`]). Nothing in
-//! this module knows about cameras or render modes.
+//! files ([`raw`]) and analytic fields sampled on a grid ([`synthetic`]). Raw data in
+//! the machine's byte order, in one file, is memory-mapped rather than read
+//! ([`mapped`]); [`VolumeSource::storage`] tells which before loading. Nothing in this
+//! module knows about cameras or render modes.
 
 pub mod geometry;
 pub mod limits;
+pub mod mapped;
 pub mod nrrd;
 pub mod raw;
 pub mod scalar;
@@ -20,7 +23,8 @@ use std::path::{Path, PathBuf};
 
 pub use geometry::Geometry;
 pub use limits::Limits;
-pub use scalar::{ScalarType, VolumeData, Voxel, Voxels};
+pub use mapped::{MappedVoxels, ReadReason, Storage};
+pub use scalar::{ScalarType, TypedVoxels, VolumeData, Voxel, Voxels};
 pub use stats::Stats;
 pub use synthetic::Synthetic;
 
@@ -143,7 +147,8 @@ impl VolumeHeader {
     }
 }
 
-/// A volume in memory: header plus native-typed voxels, x fastest.
+/// A loaded volume: header plus native-typed voxels, x fastest (in memory or mapped
+/// from a file).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Volume {
     /// Sizes, type and geometry.
@@ -170,12 +175,30 @@ impl VolumeSource {
         }
     }
 
-    /// Reads the voxels, checking `limits` before allocating.
+    /// Loads the voxels: maps them when [`VolumeSource::storage`] says
+    /// [`Storage::Mapped`], otherwise reads them, checking `limits` before allocating
+    /// (mapped data does not count against `limits`).
     pub fn load(&self, limits: &Limits) -> Result<Volume, VolumeError> {
         match self {
             VolumeSource::Nrrd(path) => load_nrrd(path, limits),
             VolumeSource::Raw(spec) => spec.load(limits),
             VolumeSource::Synthetic(s) => s.load(limits),
+        }
+    }
+
+    /// Whether [`VolumeSource::load`] will map the voxels from a file or read them into
+    /// memory, and how many bytes, without loading them. Reads the NRRD header again
+    /// (the [`VolumeHeader`] does not keep the encoding and the data file), and for
+    /// mapped data opens the data file to find where the data starts (`line skip`,
+    /// `byte skip`) and to check its type and length, giving the errors the load would.
+    pub fn storage(&self) -> Result<Storage, VolumeError> {
+        match self {
+            VolumeSource::Nrrd(path) => nrrd::storage(path),
+            VolumeSource::Raw(spec) => spec.storage(),
+            VolumeSource::Synthetic(s) => Ok(Storage::Read {
+                bytes: s.header().data_bytes(),
+                reason: ReadReason::Synthetic,
+            }),
         }
     }
 

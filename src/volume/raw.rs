@@ -1,13 +1,19 @@
 //! Headerless raw volumes: the scene gives sizes, type, byte order, spacing and offset;
 //! the file length must agree exactly (a headerless file of the wrong length almost
-//! always means wrong sizes or type). Decoding is shared with the NRRD raw encoding.
+//! always means wrong sizes or type). Data in the machine's byte order is mapped
+//! ([`super::mapped`]); the other byte order is read, with the decoder shared with the
+//! NRRD raw encoding.
 
 use std::fs::File;
 use std::io::{BufReader, Seek, SeekFrom};
 use std::path::PathBuf;
 
+use super::mapped::{self, check_regular_file, is_native_order, open_for_mapping};
 use super::nrrd::{read_elements, ReadError};
-use super::{Geometry, Limits, ScalarType, Volume, VolumeError, VolumeHeader};
+use super::{
+    Geometry, Limits, ReadReason, ScalarType, Storage, Volume, VolumeData, VolumeError,
+    VolumeHeader,
+};
 
 /// A raw file and the description the scene gives of it.
 #[derive(Clone, Debug, PartialEq)]
@@ -40,9 +46,37 @@ impl RawSpec {
         })
     }
 
-    /// Reads the voxels (limits checked before any allocation).
+    /// True when [`RawSpec::load`] maps the file (data in the machine's byte order).
+    pub fn is_mappable(&self) -> bool {
+        is_native_order(self.scalar_type, self.little_endian)
+    }
+
+    /// Whether [`RawSpec::load`] maps or reads the voxels (checks what
+    /// [`RawSpec::header`] checks).
+    pub fn storage(&self) -> Result<Storage, VolumeError> {
+        let offset = self.data_start()?;
+        let bytes = self.check_params()?;
+        Ok(if self.is_mappable() {
+            Storage::Mapped {
+                path: self.path.clone(),
+                offset,
+                bytes,
+            }
+        } else {
+            Storage::Read {
+                bytes,
+                reason: ReadReason::ByteOrder,
+            }
+        })
+    }
+
+    /// Maps the voxels (data in native byte order, not counted against `limits`), or
+    /// reads them (limits checked before any allocation).
     pub fn load(&self, limits: &Limits) -> Result<Volume, VolumeError> {
         let header = self.header()?;
+        if self.is_mappable() {
+            return self.load_mapped(header);
+        }
         let (count, _) = limits.check(&self.sizes, self.scalar_type.size())?;
         let start = self.data_start()?;
         let io_err = |source| VolumeError::Io {
@@ -69,8 +103,26 @@ impl RawSpec {
         Ok(Volume { header, data })
     }
 
-    /// Checks the parameters and the file length; returns where the data starts.
-    fn data_start(&self) -> Result<u64, VolumeError> {
+    /// Maps the data, checking type and length on the opened file.
+    fn load_mapped(&self, header: VolumeHeader) -> Result<Volume, VolumeError> {
+        let need = self.check_params()?;
+        let io_err = |source| VolumeError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let file = open_for_mapping(&self.path).map_err(io_err)?;
+        let meta = file.metadata().map_err(io_err)?;
+        check_regular_file(&self.path, &meta)?;
+        let start = self.start_in(meta.len(), need)?;
+        let data = mapped::map(&file, &self.path, self.scalar_type, start, need)?;
+        Ok(Volume {
+            header,
+            data: VolumeData::Mapped(data),
+        })
+    }
+
+    /// Checks the parameters; returns the data's size in bytes.
+    fn check_params(&self) -> Result<u64, VolumeError> {
         if self.sizes.contains(&0) {
             return Err(VolumeError::Invalid(format!(
                 "raw volume {}: sizes {:?} must all be at least 1",
@@ -96,13 +148,23 @@ impl RawSpec {
             max_bytes: u64::MAX,
         }
         .check(&self.sizes, self.scalar_type.size())?;
-        let need = bytes as u64;
-        let len = std::fs::metadata(&self.path)
-            .map_err(|source| VolumeError::Io {
-                path: self.path.clone(),
-                source,
-            })?
-            .len();
+        Ok(bytes as u64)
+    }
+
+    /// Checks the parameters, the file's type and its length; returns where the data
+    /// starts.
+    fn data_start(&self) -> Result<u64, VolumeError> {
+        let need = self.check_params()?;
+        let meta = std::fs::metadata(&self.path).map_err(|source| VolumeError::Io {
+            path: self.path.clone(),
+            source,
+        })?;
+        check_regular_file(&self.path, &meta)?;
+        self.start_in(meta.len(), need)
+    }
+
+    /// Where `need` bytes of data start in a file of `len` bytes, or why they do not fit.
+    fn start_in(&self, len: u64, need: u64) -> Result<u64, VolumeError> {
         let data_err = |message: String| VolumeError::Data {
             path: self.path.clone(),
             message,
@@ -140,7 +202,6 @@ impl RawSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::volume::VolumeData;
 
     fn spec(
         dir: &tempfile::TempDir,

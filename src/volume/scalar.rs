@@ -5,6 +5,8 @@
 
 use std::fmt;
 
+use super::mapped::MappedVoxels;
+
 /// The element type of a volume or image, with the names the NRRD format uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ScalarType {
@@ -330,16 +332,6 @@ impl<'a, T: Voxel> Voxels<'a, T> {
         }
     }
 
-    /// The `len` voxels from index `start` (panics when they are not all inside).
-    pub fn slice(&self, start: usize, len: usize) -> Voxels<'a, T> {
-        let size = std::mem::size_of::<T>();
-        Voxels {
-            bytes: &self.bytes[start * size..(start + len) * size],
-            len,
-            _type: std::marker::PhantomData,
-        }
-    }
-
     /// Every voxel, in order.
     pub fn iter(&self) -> impl Iterator<Item = T> + 'a {
         let size = std::mem::size_of::<T>();
@@ -349,10 +341,75 @@ impl<'a, T: Voxel> Voxels<'a, T> {
             unsafe { c.as_ptr().cast::<T>().read_unaligned() }
         })
     }
+
+    /// The voxels with indices in `range` (panics when it is not inside `0..len()`).
+    pub fn slice(&self, range: std::ops::Range<usize>) -> Voxels<'a, T> {
+        assert!(
+            range.start <= range.end && range.end <= self.len,
+            "voxel range {range:?} out of {}",
+            self.len
+        );
+        let size = std::mem::size_of::<T>();
+        Voxels::from_bytes(&self.bytes[range.start * size..range.end * size])
+    }
+
+    /// The voxels' bytes, in native byte order.
+    pub fn as_bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+
+    /// The voxels as a `&[T]`, when their address is aligned for `T`: always for
+    /// owned data; for mapped data when the data's offset in the file is a multiple of
+    /// the element's alignment.
+    pub fn as_slice(&self) -> Option<&'a [T]> {
+        if self.bytes.as_ptr().align_offset(std::mem::align_of::<T>()) != 0 {
+            return None;
+        }
+        // SAFETY: the pointer is aligned for `T` (checked), `len * size_of::<T>()`
+        // bytes are readable for `'a`, and every bit pattern is a valid `T` (primitive
+        // numbers). An empty view has a dangling-but-aligned or real pointer: fine too.
+        Some(unsafe { std::slice::from_raw_parts(self.bytes.as_ptr().cast::<T>(), self.len) })
+    }
+
+    /// The voxels as a typed slice, for code that needs `&[T]` (the render core
+    /// before it reads [`Voxels`]): borrowed when aligned ([`Voxels::as_slice`]: owned
+    /// data, or mapped data at an offset that is a multiple of the alignment),
+    /// otherwise copied into a new buffer of `len()` elements, which is memory volcast
+    /// allocates and therefore checked against `limits` first. Only unaligned mapped
+    /// data (e.g. 16-bit voxels after an attached NRRD header of odd length) is copied.
+    pub fn to_aligned(
+        &self,
+        limits: &super::Limits,
+    ) -> Result<std::borrow::Cow<'a, [T]>, super::VolumeError> {
+        if let Some(s) = self.as_slice() {
+            return Ok(std::borrow::Cow::Borrowed(s));
+        }
+        let bytes = self.bytes.len() as u64;
+        if bytes > limits.max_bytes {
+            return Err(super::VolumeError::TooLarge {
+                what: format!(
+                    "an aligned copy of the {} mapped {} voxels (they start at an offset of \
+                     the file that is not a multiple of {} bytes)",
+                    self.len,
+                    T::TYPE,
+                    std::mem::align_of::<T>()
+                ),
+                bytes: Some(bytes),
+                limit: limits.max_bytes,
+            });
+        }
+        Ok(std::borrow::Cow::Owned(self.iter().collect()))
+    }
 }
 
-/// Voxel values in their native type, x fastest.
-#[derive(Clone, Debug, PartialEq)]
+/// Voxel values in their native type, x fastest: owned (read, decoded or computed
+/// into memory volcast allocated) or mapped from a file ([`MappedVoxels`]). Read them
+/// through [`VolumeData::voxels`] or [`with_voxels!`](crate::with_voxels), which work
+/// for both.
+///
+/// Equality compares the element type and the values (like `Vec` equality: NaN is
+/// unequal to itself), whatever the storage.
+#[derive(Clone, Debug)]
 pub enum VolumeData {
     /// `int8`
     I8(Vec<i8>),
@@ -374,23 +431,53 @@ pub enum VolumeData {
     F32(Vec<f32>),
     /// `double`
     F64(Vec<f64>),
+    /// Any type, mapped read-only from a file.
+    Mapped(MappedVoxels),
 }
 
-/// Calls `$body` with `$v` bound to the typed `Vec` inside a [`VolumeData`].
+/// A [`Voxels`] view tagged with its element type: what [`VolumeData::typed`] returns,
+/// for dispatching generic code on the element type (see [`with_voxels!`](crate::with_voxels)).
+#[derive(Clone, Copy, Debug)]
+pub enum TypedVoxels<'a> {
+    /// `int8`
+    I8(Voxels<'a, i8>),
+    /// `uint8`
+    U8(Voxels<'a, u8>),
+    /// `int16`
+    I16(Voxels<'a, i16>),
+    /// `uint16`
+    U16(Voxels<'a, u16>),
+    /// `int32`
+    I32(Voxels<'a, i32>),
+    /// `uint32`
+    U32(Voxels<'a, u32>),
+    /// `int64`
+    I64(Voxels<'a, i64>),
+    /// `uint64`
+    U64(Voxels<'a, u64>),
+    /// `float`
+    F32(Voxels<'a, f32>),
+    /// `double`
+    F64(Voxels<'a, f64>),
+}
+
+/// Calls `$body` with `$v` bound to the [`Voxels`] view of a [`VolumeData`] (owned or
+/// mapped), typed with its element type: `with_voxels!(&volume.data, v => f(v))` calls
+/// `f::<u16>(v: Voxels<u16>)` for 16-bit data, and so on.
 #[macro_export]
-macro_rules! with_volume_data {
+macro_rules! with_voxels {
     ($data:expr, $v:ident => $body:expr) => {
-        match $data {
-            $crate::volume::VolumeData::I8($v) => $body,
-            $crate::volume::VolumeData::U8($v) => $body,
-            $crate::volume::VolumeData::I16($v) => $body,
-            $crate::volume::VolumeData::U16($v) => $body,
-            $crate::volume::VolumeData::I32($v) => $body,
-            $crate::volume::VolumeData::U32($v) => $body,
-            $crate::volume::VolumeData::I64($v) => $body,
-            $crate::volume::VolumeData::U64($v) => $body,
-            $crate::volume::VolumeData::F32($v) => $body,
-            $crate::volume::VolumeData::F64($v) => $body,
+        match $crate::volume::VolumeData::typed($data) {
+            $crate::volume::TypedVoxels::I8($v) => $body,
+            $crate::volume::TypedVoxels::U8($v) => $body,
+            $crate::volume::TypedVoxels::I16($v) => $body,
+            $crate::volume::TypedVoxels::U16($v) => $body,
+            $crate::volume::TypedVoxels::I32($v) => $body,
+            $crate::volume::TypedVoxels::U32($v) => $body,
+            $crate::volume::TypedVoxels::I64($v) => $body,
+            $crate::volume::TypedVoxels::U64($v) => $body,
+            $crate::volume::TypedVoxels::F32($v) => $body,
+            $crate::volume::TypedVoxels::F64($v) => $body,
         }
     };
 }
@@ -409,22 +496,68 @@ impl VolumeData {
             VolumeData::U64(_) => ScalarType::Uint64,
             VolumeData::F32(_) => ScalarType::Float32,
             VolumeData::F64(_) => ScalarType::Float64,
+            VolumeData::Mapped(m) => m.scalar_type(),
         }
     }
 
-    /// The voxels as a typed view, when they are of type `T`.
-    pub fn voxels<T: Voxel>(&self) -> Option<Voxels<'_, T>> {
-        if self.scalar_type() != T::TYPE {
-            return None;
+    /// The voxels' bytes in native byte order (owned or mapped).
+    fn native_bytes(&self) -> &[u8] {
+        fn of<T: Voxel>(v: &[T]) -> &[u8] {
+            Voxels::from_slice(v).bytes
         }
-        Some(
-            with_volume_data!(self, v => Voxels::from_bytes(Voxels::from_slice(v.as_slice()).bytes)),
-        )
+        match self {
+            VolumeData::I8(v) => of(v),
+            VolumeData::U8(v) => v,
+            VolumeData::I16(v) => of(v),
+            VolumeData::U16(v) => of(v),
+            VolumeData::I32(v) => of(v),
+            VolumeData::U32(v) => of(v),
+            VolumeData::I64(v) => of(v),
+            VolumeData::U64(v) => of(v),
+            VolumeData::F32(v) => of(v),
+            VolumeData::F64(v) => of(v),
+            VolumeData::Mapped(m) => m.bytes(),
+        }
+    }
+
+    /// The voxels as a typed view, when they are of type `T` (owned or mapped alike).
+    pub fn voxels<T: Voxel>(&self) -> Option<Voxels<'_, T>> {
+        (self.scalar_type() == T::TYPE).then(|| Voxels::from_bytes(self.native_bytes()))
+    }
+
+    /// The voxels as a view tagged with their type.
+    pub fn typed(&self) -> TypedVoxels<'_> {
+        let b = self.native_bytes();
+        match self.scalar_type() {
+            ScalarType::Int8 => TypedVoxels::I8(Voxels::from_bytes(b)),
+            ScalarType::Uint8 => TypedVoxels::U8(Voxels::from_bytes(b)),
+            ScalarType::Int16 => TypedVoxels::I16(Voxels::from_bytes(b)),
+            ScalarType::Uint16 => TypedVoxels::U16(Voxels::from_bytes(b)),
+            ScalarType::Int32 => TypedVoxels::I32(Voxels::from_bytes(b)),
+            ScalarType::Uint32 => TypedVoxels::U32(Voxels::from_bytes(b)),
+            ScalarType::Int64 => TypedVoxels::I64(Voxels::from_bytes(b)),
+            ScalarType::Uint64 => TypedVoxels::U64(Voxels::from_bytes(b)),
+            ScalarType::Float32 => TypedVoxels::F32(Voxels::from_bytes(b)),
+            ScalarType::Float64 => TypedVoxels::F64(Voxels::from_bytes(b)),
+        }
+    }
+
+    /// The mapping, when the voxels are mapped from a file.
+    pub fn mapped(&self) -> Option<&MappedVoxels> {
+        match self {
+            VolumeData::Mapped(m) => Some(m),
+            _ => None,
+        }
+    }
+
+    /// True when the voxels are mapped from a file rather than held in memory.
+    pub fn is_mapped(&self) -> bool {
+        self.mapped().is_some()
     }
 
     /// Number of elements.
     pub fn len(&self) -> usize {
-        with_volume_data!(self, v => v.len())
+        self.native_bytes().len() / self.scalar_type().size()
     }
 
     /// True when there are no elements.
@@ -432,14 +565,23 @@ impl VolumeData {
         self.len() == 0
     }
 
-    /// Bytes held in memory.
+    /// Bytes of voxel data, owned or mapped (see [`VolumeData::allocated_bytes`]).
     pub fn byte_len(&self) -> usize {
-        self.len() * self.scalar_type().size()
+        self.native_bytes().len()
     }
 
-    /// Element `i` as `f64`.
+    /// Bytes of voxel data held in memory volcast allocated (0 when mapped).
+    pub fn allocated_bytes(&self) -> usize {
+        if self.is_mapped() {
+            0
+        } else {
+            self.byte_len()
+        }
+    }
+
+    /// Element `i` as `f64` (panics when `i >= len()`).
     pub fn get_f64(&self, i: usize) -> f64 {
-        with_volume_data!(self, v => v[i].to_f64())
+        with_voxels!(self, v => v.get(i).to_f64())
     }
 
     /// Decodes `count` elements of type `ty` from `bytes` (exactly `count * ty.size()`
@@ -486,6 +628,17 @@ impl VolumeData {
     }
 }
 
+impl PartialEq for VolumeData {
+    fn eq(&self, other: &VolumeData) -> bool {
+        fn same<T: Voxel + PartialEq>(a: Voxels<'_, T>, other: &VolumeData) -> bool {
+            other
+                .voxels::<T>()
+                .is_some_and(|b| a.len() == b.len() && a.iter().eq(b.iter()))
+        }
+        with_voxels!(self, v => same(v, other))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -519,6 +672,47 @@ mod tests {
         check(u16::MIN, u16::MAX);
         assert_eq!(<f32 as Voxel>::LUT_SIZE, 0);
         assert_eq!((-3i16).lut_index(), 32765);
+    }
+
+    #[test]
+    fn views_at_any_alignment() {
+        let values = [1u16, 0xfffe, 300, 7];
+        let mut bytes = vec![0u8];
+        for v in values {
+            bytes.extend(v.to_ne_bytes());
+        }
+        // the same bytes at an odd and at an even address
+        let aligned = VolumeData::U16(values.to_vec());
+        let owned = aligned.voxels::<u16>().unwrap();
+        let odd = if bytes[1..].as_ptr().align_offset(2) == 0 {
+            bytes.push(0);
+            bytes.copy_within(1..9, 2);
+            Voxels::<u16>::from_bytes(&bytes[2..10])
+        } else {
+            Voxels::<u16>::from_bytes(&bytes[1..9])
+        };
+        assert!(owned.as_slice().is_some());
+        assert!(odd.as_slice().is_none());
+        let limits = super::super::Limits { max_bytes: 8 };
+        let copy = odd.to_aligned(&limits).unwrap();
+        assert!(matches!(copy, std::borrow::Cow::Owned(_)));
+        assert_eq!(&*copy, &values[..]);
+        let tight = super::super::Limits { max_bytes: 7 };
+        assert!(odd.to_aligned(&tight).is_err());
+        let borrowed = owned.to_aligned(&tight).unwrap();
+        assert!(matches!(borrowed, std::borrow::Cow::Borrowed(_)));
+        assert_eq!(odd.iter().collect::<Vec<_>>(), values);
+        assert_eq!(odd.slice(1..3).iter().collect::<Vec<_>>(), [0xfffe, 300]);
+        assert!(odd.slice(4..4).is_empty());
+        assert!(aligned.voxels::<i16>().is_none());
+        assert_eq!(aligned.get_f64(1), 65534.0);
+        assert_eq!((aligned.len(), aligned.byte_len()), (4, 8));
+        assert!(!aligned.is_mapped());
+        assert_ne!(aligned, VolumeData::I16(vec![1, -2, 300, 7]));
+        assert_ne!(
+            VolumeData::F32(vec![f32::NAN]),
+            VolumeData::F32(vec![f32::NAN])
+        );
     }
 
     #[test]

@@ -5,8 +5,8 @@
 
 use std::io::{self, BufRead, Read};
 
-use crate::volume::{ScalarType, VolumeData, Voxel};
-use crate::with_volume_data;
+use crate::volume::{ScalarType, VolumeData, Voxel, Voxels};
+use crate::with_voxels;
 
 /// Bytes read per step (a multiple of every element size).
 const CHUNK: usize = 1 << 16;
@@ -63,7 +63,19 @@ impl ElementSink {
 
     fn push(&mut self, bytes: &[u8]) {
         let (le, total) = (self.little_endian, self.total);
-        with_volume_data!(&mut self.data, v => push(v, bytes, le, total));
+        match &mut self.data {
+            VolumeData::I8(v) => push(v, bytes, le, total),
+            VolumeData::U8(v) => push(v, bytes, le, total),
+            VolumeData::I16(v) => push(v, bytes, le, total),
+            VolumeData::U16(v) => push(v, bytes, le, total),
+            VolumeData::I32(v) => push(v, bytes, le, total),
+            VolumeData::U32(v) => push(v, bytes, le, total),
+            VolumeData::I64(v) => push(v, bytes, le, total),
+            VolumeData::U64(v) => push(v, bytes, le, total),
+            VolumeData::F32(v) => push(v, bytes, le, total),
+            VolumeData::F64(v) => push(v, bytes, le, total),
+            VolumeData::Mapped(_) => unreachable!("an ElementSink only holds owned data"),
+        }
     }
 
     /// Reads exactly `count` more elements from `r`.
@@ -357,31 +369,36 @@ impl_native_bytes!("{:?}": f32, f64);
 
 /// The data as stored bytes in the given byte order.
 pub(super) fn element_bytes(data: &VolumeData, little_endian: bool) -> Vec<u8> {
-    fn conv<T: NativeBytes>(v: &[T], le: bool) -> Vec<u8> {
-        let mut out = Vec::with_capacity(std::mem::size_of_val(v));
-        for &x in v {
+    fn conv<T: Voxel + NativeBytes>(v: Voxels<'_, T>, le: bool) -> Vec<u8> {
+        if le == cfg!(target_endian = "little") {
+            return v.as_bytes().to_vec();
+        }
+        let mut out = Vec::with_capacity(v.as_bytes().len());
+        for x in v.iter() {
             let (b, n) = x.bytes8(le);
             out.extend_from_slice(&b[..n]);
         }
         out
     }
-    with_volume_data!(data, v => conv(v, little_endian))
+    with_voxels!(data, v => conv(v, little_endian))
 }
 
 /// The data as ASCII text, `per_line` values per line (Rust's shortest round-trip
 /// formatting, `1.0e300`-style for extreme floats; NaN and infinities as `NaN`, `inf`,
 /// `-inf`).
 pub(super) fn ascii_text(data: &VolumeData, per_line: usize) -> Vec<u8> {
-    fn conv<T: NativeBytes>(v: &[T], per_line: usize) -> Vec<u8> {
+    fn conv<T: Voxel + NativeBytes>(v: Voxels<'_, T>, per_line: usize) -> Vec<u8> {
+        let per_line = per_line.max(1);
         let mut out = String::new();
-        for row in v.chunks(per_line.max(1)) {
+        for start in (0..v.len()).step_by(per_line) {
+            let row = v.slice(start..(start + per_line).min(v.len()));
             let line: Vec<String> = row.iter().map(|x| x.ascii()).collect();
             out.push_str(&line.join(" "));
             out.push('\n');
         }
         out.into_bytes()
     }
-    with_volume_data!(data, v => conv(v, per_line))
+    with_voxels!(data, v => conv(v, per_line))
 }
 
 /// Bytes as hex text, 32 bytes (64 digits) per line.

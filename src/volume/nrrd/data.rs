@@ -1,5 +1,6 @@
-//! Reading the data: which files, line and byte skips, then the encoding's decoder
-//! feeding an [`ElementSink`].
+//! Reading the data: which files, line and byte skips, then either a mapping of the
+//! data's bytes (raw, native byte order, one file) or the encoding's decoder feeding
+//! an [`ElementSink`].
 
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read, Seek, SeekFrom};
@@ -7,7 +8,8 @@ use std::path::{Path, PathBuf};
 
 use super::codec::{AsciiReader, ElementSink, HexReader, ReadError};
 use super::{DataFile, Encoding, Endian, NrrdHeader};
-use crate::volume::{Limits, VolumeData, VolumeError};
+use crate::volume::mapped::{self, check_regular_file, is_native_order, open_for_mapping};
+use crate::volume::{Limits, ReadReason, Storage, VolumeData, VolumeError};
 
 /// A printf-style integer conversion in a data file name format (`slice%03d.raw`).
 #[derive(Debug, PartialEq)]
@@ -160,22 +162,96 @@ fn data_file(
     }
 }
 
-/// Reads all the data of a checked header.
-pub(super) fn read_data(
-    header_path: &Path,
-    h: &NrrdHeader,
-    data_offset: Option<u64>,
-    limits: &Limits,
-) -> Result<VolumeData, VolumeError> {
-    let elem = h.scalar_type.size();
-    let (count, _) = limits.check(&h.sizes, elem).map_err(|e| match e {
+/// How [`read_data`] will hold the data of a checked header: mapped (raw encoding in
+/// native byte order, in one file) or read, and why.
+pub(super) fn storage_kind(h: &NrrdHeader) -> Result<(), ReadReason> {
+    if h.encoding != Encoding::Raw {
+        return Err(ReadReason::Encoding(h.encoding));
+    }
+    if !matches!(h.data_file, DataFile::Attached | DataFile::Single(_)) {
+        return Err(ReadReason::DataFiles(
+            u64::try_from(file_count(&h.data_file)).unwrap_or(u64::MAX),
+        ));
+    }
+    if !is_native_order(h.scalar_type, h.endian == Endian::Little) {
+        return Err(ReadReason::ByteOrder);
+    }
+    Ok(())
+}
+
+/// Bytes of data a checked header declares (overflow checked, no limit).
+fn data_bytes(header_path: &Path, h: &NrrdHeader) -> Result<u64, VolumeError> {
+    let unlimited = Limits {
+        max_bytes: u64::MAX,
+    };
+    let (_, bytes) = unlimited
+        .check(&h.sizes, h.scalar_type.size())
+        .map_err(|e| with_path(header_path, e))?;
+    Ok(bytes as u64)
+}
+
+/// Names the header in a [`VolumeError::TooLarge`].
+fn with_path(header_path: &Path, e: VolumeError) -> VolumeError {
+    match e {
         VolumeError::TooLarge { what, bytes, limit } => VolumeError::TooLarge {
             what: format!("{}: {what}", header_path.display()),
             bytes,
             limit,
         },
         other => other,
-    })?;
+    }
+}
+
+/// The single piece of a mappable header.
+fn single_piece<'a>(header_path: &'a Path, h: &'a NrrdHeader, path: &'a Path) -> Piece<'a> {
+    Piece {
+        header: h,
+        header_path,
+        path,
+        index: 0,
+        files: 1,
+        elements: h.element_count().unwrap_or(0),
+    }
+}
+
+/// Where the data of a checked header will be: mapped from a file, or read.
+pub(super) fn storage(
+    header_path: &Path,
+    h: &NrrdHeader,
+    data_offset: Option<u64>,
+) -> Result<Storage, VolumeError> {
+    let bytes = data_bytes(header_path, h)?;
+    if let Err(reason) = storage_kind(h) {
+        return Ok(Storage::Read { bytes, reason });
+    }
+    let (path, start) = data_file(header_path, h, data_offset, 0);
+    let (_, offset) = single_piece(header_path, h, &path).locate_raw(start)?;
+    Ok(Storage::Mapped {
+        path,
+        offset,
+        bytes,
+    })
+}
+
+/// Reads all the data of a checked header, or maps it (raw encoding in native byte
+/// order, in one file: not counted against `limits`).
+pub(super) fn read_data(
+    header_path: &Path,
+    h: &NrrdHeader,
+    data_offset: Option<u64>,
+    limits: &Limits,
+) -> Result<VolumeData, VolumeError> {
+    if storage_kind(h).is_ok() {
+        let bytes = data_bytes(header_path, h)?;
+        let (path, start) = data_file(header_path, h, data_offset, 0);
+        let (file, offset) = single_piece(header_path, h, &path).locate_raw(start)?;
+        let m = mapped::map(&file, &path, h.scalar_type, offset, bytes)?;
+        return Ok(VolumeData::Mapped(m));
+    }
+    let elem = h.scalar_type.size();
+    let (count, _) = limits
+        .check(&h.sizes, elem)
+        .map_err(|e| with_path(header_path, e))?;
     // check_header made sure the count divides evenly and is at most `count`.
     let files = usize::try_from(file_count(&h.data_file))
         .unwrap_or(usize::MAX)
@@ -281,6 +357,32 @@ impl Piece<'_> {
                 self.probe_end(&mut d, "ascii")
             }
         }
+    }
+
+    /// Raw data to be mapped: opens the file without blocking, refuses anything but a
+    /// regular file, applies `line skip` and `byte skip` as [`Piece::read`] does (same
+    /// errors for data that is too short), and returns the file and where the data
+    /// starts.
+    fn locate_raw(&self, start: u64) -> Result<(File, u64), VolumeError> {
+        let file = open_for_mapping(self.path).map_err(|e| match self.header.data_file {
+            DataFile::Attached => self.io_error(e),
+            _ => self.error(format_args!("cannot open data file: {e}")),
+        })?;
+        let meta = file.metadata().map_err(|e| self.io_error(e))?;
+        check_regular_file(self.path, &meta).map_err(|e| match e {
+            VolumeError::Unsupported { path, message } => VolumeError::Unsupported {
+                path,
+                message: format!("{message}{}", self.context()),
+            },
+            other => other,
+        })?;
+        let mut r = BufReader::new(file);
+        r.seek(SeekFrom::Start(start))
+            .map_err(|e| self.io_error(e))?;
+        self.skip_lines(&mut r)?;
+        self.position_raw(&mut r, meta.len())?;
+        let offset = r.stream_position().map_err(|e| self.io_error(e))?;
+        Ok((r.into_inner(), offset))
     }
 
     /// `line skip`: whole lines of the file as stored, without buffering them.

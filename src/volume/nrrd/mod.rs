@@ -8,12 +8,17 @@
 //!  │                               offset of attached data (blank line)
 //!  ├─ fields::parse_fields         one parser per field (table FIELDS), in dependency order
 //!  ├─ check::check_header          required fields, endian, skips, data file pieces, space
-//!  ├─ Limits::check                element count × type size, before any allocation
-//!  └─ data::read_data              for each data file (attached, single, %d pattern, LIST):
-//!      ├─ skip_lines               `line skip` on the file as stored
-//!      ├─ byte skip                raw/ascii/hex: on the file; gzip/bzip2: on the
-//!      │                           decompressed stream; -1: data = last bytes (raw only)
-//!      └─ codec::ElementSink       decode (raw | gzip | bzip2 | ascii | hex) into the
+//!  └─ data::read_data
+//!      ├─ raw encoding, native byte order, one file (attached or `data file: x.raw`):
+//!      │   └─ locate_raw           open without blocking, refuse non-regular files,
+//!      │                           line skip, byte skip (-1 = last bytes), length
+//!      │                           check; then mapped::map: no copy, no Limits
+//!      └─ anything else: Limits::check (count × type size) before any allocation, then
+//!         for each data file (attached, single, %d pattern, LIST):
+//!          ├─ skip_lines           `line skip` on the file as stored
+//!          ├─ byte skip            raw/ascii/hex: on the file; gzip/bzip2: on the
+//!          │                       decompressed stream; -1: data = last bytes (raw only)
+//!          └─ codec::ElementSink   decode (raw | gzip | bzip2 | ascii | hex) into the
 //!                                  native-typed buffer, honouring `endian`, growing
 //!                                  only as bytes arrive
 //! volume_header (view.rs)          N-D header → 3D sizes + Geometry for the renderer
@@ -33,7 +38,7 @@ mod write;
 
 use std::path::Path;
 
-use super::{Limits, ScalarType, VolumeData, VolumeError, VolumeHeader};
+use super::{Limits, ScalarType, Storage, VolumeData, VolumeError, VolumeHeader};
 
 pub(crate) use codec::{read_elements, ReadError};
 pub use write::{encode, write_detached};
@@ -387,7 +392,17 @@ pub fn read_header(path: &Path) -> Result<NrrdHeader, VolumeError> {
     Ok(header::load_header(path)?.0)
 }
 
+/// Whether [`read`] will map the data (raw encoding in native byte order, attached or
+/// in one `data file`) or read it, and how many bytes. For mapped data the data file is
+/// opened to apply `line skip` and `byte skip` and to check its type and length.
+pub fn storage(path: &Path) -> Result<Storage, VolumeError> {
+    let (header, data_offset) = header::load_header(path)?;
+    data::storage(path, &header, data_offset)
+}
+
 /// Reads header and data; `limits` is checked before any voxel memory is allocated.
+/// Raw data in native byte order in one file is mapped instead (see
+/// [`crate::volume::mapped`]) and does not count against `limits`.
 pub fn read(path: &Path, limits: &Limits) -> Result<(NrrdHeader, VolumeData), VolumeError> {
     let (header, data_offset) = header::load_header(path)?;
     let data = data::read_data(path, &header, data_offset, limits)?;
