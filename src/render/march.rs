@@ -30,19 +30,38 @@ pub trait Lattice {
     fn first_at_or_after(&self, t: f64) -> usize {
         let n = self.len();
         let g = self.guess(t);
-        let mut i = if g > 0.0 {
-            (g.ceil() as usize).min(n)
+        let i = if g > 0.0 {
+            // the ceiling without a library call (no rounding instruction on
+            // baseline x86-64); a huge guess saturates and is clamped
+            let c = g as usize;
+            (if (c as f64) < g { c + 1 } else { c }).min(n)
         } else {
             0
         };
-        while i > 0 && self.t(i - 1) >= t {
-            i -= 1;
+        // the guess is right but for rounding: check it, and walk only if it is not
+        // (out of line, so that the check stays two comparisons)
+        let above = i == 0 || self.t(i - 1) < t;
+        let below = i == n || self.t(i) >= t;
+        if above && below {
+            i
+        } else {
+            search(self, t, i)
         }
-        while i < n && self.t(i) < t {
-            i += 1;
-        }
-        i
     }
+}
+
+/// [`Lattice::first_at_or_after`] from a wrong guess `i`.
+#[cold]
+#[inline(never)]
+fn search<L: Lattice + ?Sized>(lattice: &L, t: f64, mut i: usize) -> usize {
+    let n = lattice.len();
+    while i > 0 && lattice.t(i - 1) >= t {
+        i -= 1;
+    }
+    while i < n && lattice.t(i) < t {
+        i += 1;
+    }
+    i
 }
 
 /// Sample positions along `[t0, t1]`: `t0`, every `dt` (shifted back by a
@@ -100,10 +119,11 @@ impl March {
         if i > self.full_steps {
             self.t1
         } else {
-            // `i + 0.0` is exact, so the plain march is unchanged by the shift; the
+            // `i + 0.0` is exact, so the plain march is unchanged by the shift; `i`
+            // converts through i64 (one instruction; the same value below 2^63); the
             // comparisons (not `f64::max`/`min`, which also handle NaN) keep the
             // position inside the segment in two instructions
-            let t = self.t0 + (i as f64 + self.shift) * self.dt;
+            let t = self.t0 + (i as i64 as f64 + self.shift) * self.dt;
             let t = if t > self.t0 { t } else { self.t0 };
             if t < self.t1 {
                 t

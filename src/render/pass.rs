@@ -683,19 +683,22 @@ fn build_typed<'v, T: Voxel>(
         .map(|s| {
             let g = match s {
                 GridSource::Voxels(support) => {
-                    MacroGrid::build(sizes, support, |start, len| grid.run_range(start, len))
+                    MacroGrid::build(sizes, support, |row, windows, out| {
+                        grid.row_ranges(row, windows, out)
+                    })
                 }
                 GridSource::Coefficients => {
                     let c = coefficients
                         .as_deref()
                         .expect("cubic passes make coefficients");
-                    MacroGrid::build(sizes, Support::Cubic, |start, len| {
-                        c[start..start + len]
-                            .iter()
-                            .fold([1.0f32, 0.0f32], |[lo, hi], &v| {
+                    MacroGrid::build(sizes, Support::Cubic, |row, windows, out| {
+                        for (o, &(x0, x1)) in out.iter_mut().zip(windows) {
+                            // the spline is clamped to [0, 1], and so are its extremes
+                            *o = c[row + x0..=row + x1].iter().fold([1.0f32, 0.0f32], |[lo, hi], &v| {
                                 let v = v.clamp(0.0, 1.0);
                                 [lo.min(v), hi.max(v)]
-                            })
+                            });
+                        }
                     })
                 }
             };

@@ -15,7 +15,6 @@
 //! the cell's samples; the samples it does take are those of the unskipped march,
 //! so the image is the same (bit for bit: see the tests that compare both).
 
-use glam::DVec3;
 use rayon::prelude::*;
 
 use super::ray::IndexRay;
@@ -65,9 +64,10 @@ impl MacroGrid {
             .fold(8u64, |a, &d| a.saturating_mul(d as u64))
     }
 
-    /// The grid over `n` voxels for a filter of `support`, where `run(start, len)`
-    /// is the range `[min, max]` of the normalised values (as the filter reads them)
-    /// of the `len` voxels from flat index `start` along x.
+    /// The grid over `n` voxels for a filter of `support`, where `rows(row, windows,
+    /// out)` writes into `out` the range `[min, max]` of the normalised values (as
+    /// the filter reads them) of the voxels `x0..=x1` of the x row starting at flat
+    /// index `row`, for each `(x0, x1)` of `windows`.
     ///
     /// Separable: the ranges of each voxel row's windows along x, then of those
     /// along y, then along z, one slab of macrocells at a time (in parallel), so
@@ -75,7 +75,7 @@ impl MacroGrid {
     pub fn build(
         n: [usize; 3],
         support: Support,
-        run: impl Fn(usize, usize) -> [f32; 2] + Sync,
+        rows: impl Fn(usize, &[(usize, usize)], &mut [[f32; 2]]) + Sync,
     ) -> Self {
         let dims = Self::dims(n);
         let (before, after) = support.reach();
@@ -98,15 +98,12 @@ impl MacroGrid {
                 let (z0, z1) = window(ck, 2);
                 let nz = z1 - z0 + 1;
                 // along x: per (z, y) row, per macrocell column
-                let mut rows = vec![EMPTY; nz * n[1] * dims[0]];
+                let windows: Vec<(usize, usize)> = (0..dims[0]).map(|c| window(c, 0)).collect();
+                let mut ranges = vec![EMPTY; nz * n[1] * dims[0]];
                 for z in 0..nz {
                     for y in 0..n[1] {
-                        let start = sx * y + sxy * (z0 + z);
-                        let out = &mut rows[(z * n[1] + y) * dims[0]..][..dims[0]];
-                        for (ci, r) in out.iter_mut().enumerate() {
-                            let (x0, x1) = window(ci, 0);
-                            *r = run(start + x0, x1 - x0 + 1);
-                        }
+                        let out = &mut ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
+                        rows(sx * y + sxy * (z0 + z), &windows, out);
                     }
                 }
                 // along y, then z
@@ -115,7 +112,7 @@ impl MacroGrid {
                     let (y0, y1) = window(cj, 1);
                     for z in 0..nz {
                         for y in y0..=y1 {
-                            let row = &rows[(z * n[1] + y) * dims[0]..][..dims[0]];
+                            let row = &ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
                             let out = &mut cells[cj * dims[0]..][..dims[0]];
                             for (o, &r) in out.iter_mut().zip(row) {
                                 *o = union(*o, r);
@@ -139,11 +136,14 @@ impl MacroGrid {
         support: Support,
         value: impl Fn(usize) -> f32 + Sync,
     ) -> Self {
-        Self::build(n, support, |start, len| {
-            (start..start + len).fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], i| {
-                let v = value(i);
-                [lo.min(v), hi.max(v)]
-            })
+        Self::build(n, support, |row, windows, out| {
+            for (o, &(x0, x1)) in out.iter_mut().zip(windows) {
+                *o = (row + x0..=row + x1)
+                    .fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], i| {
+                        let v = value(i);
+                        [lo.min(v), hi.max(v)]
+                    });
+            }
         })
     }
 
@@ -205,14 +205,18 @@ pub struct Span {
 
 /// The macrocells a ray crosses, in order (a 3D DDA, Amanatides and Woo 1987, with
 /// every crossing computed from its plane index, never accumulated). Cells outside
-/// the grid (the half-voxel slabs of one-voxel axes) are clamped to it.
+/// the grid (the half-voxel slabs of one-voxel axes, round-off at the box's faces)
+/// count as the nearest cell inside it.
 #[derive(Clone, Debug)]
 pub struct Walk<'a> {
     grid: &'a MacroGrid,
-    o: DVec3,
-    d: DVec3,
+    o: [f64; 3],
+    /// `1 / d` per axis (0 where the ray is parallel to the axis' planes).
+    inv: [f64; 3],
     cell: [i64; 3],
     step: [i64; 3],
+    /// The flat index of the cell, clamped to the grid.
+    flat: usize,
     t_next: [f64; 3],
     t: f64,
     t_exit: f64,
@@ -222,9 +226,10 @@ pub struct Walk<'a> {
 impl<'a> Walk<'a> {
     fn new(grid: &'a MacroGrid, ray: &IndexRay, t_enter: f64, t_exit: f64) -> Walk<'a> {
         let b = MACROCELL as f64;
-        let (o, d) = (ray.o, ray.d);
+        let (o, d) = (ray.o.to_array(), ray.d.to_array());
         let mut cell = [0i64; 3];
         let mut step = [0i64; 3];
+        let mut inv = [0.0; 3];
         let mut t_next = [f64::INFINITY; 3];
         // the cell of the point a little inside the entry, so that a ray entering
         // exactly on a macrocell face starts in the cell it goes into
@@ -236,33 +241,28 @@ impl<'a> Walk<'a> {
         for a in 0..3 {
             let p = o[a] + mid * d[a];
             cell[a] = (p / b).floor() as i64;
-            if d[a] > 0.0 {
-                step[a] = 1;
-                t_next[a] = ((cell[a] + 1) as f64 * b - o[a]) / d[a];
-            } else if d[a] < 0.0 {
-                step[a] = -1;
-                t_next[a] = (cell[a] as f64 * b - o[a]) / d[a];
+            if d[a] != 0.0 {
+                inv[a] = 1.0 / d[a];
+                step[a] = if d[a] > 0.0 { 1 } else { -1 };
+                let plane = if d[a] > 0.0 { cell[a] + 1 } else { cell[a] };
+                t_next[a] = (plane as f64 * b - o[a]) * inv[a];
             }
         }
+        let dims = grid.dims;
+        let c = |a: usize| cell[a].clamp(0, dims[a] as i64 - 1) as usize;
         let ok = t_enter.is_finite() && t_exit.is_finite() && t_exit >= t_enter;
         Walk {
             grid,
             o,
-            d,
+            inv,
             cell,
             step,
+            flat: c(0) + dims[0] * (c(1) + dims[1] * c(2)),
             t_next,
             t: t_enter,
             t_exit,
             done: !ok,
         }
-    }
-
-    #[inline(always)]
-    fn flat(&self) -> usize {
-        let dims = self.grid.dims;
-        let c = |a: usize| self.cell[a].clamp(0, dims[a] as i64 - 1) as usize;
-        c(0) + dims[0] * (c(1) + dims[1] * c(2))
     }
 }
 
@@ -274,33 +274,50 @@ impl Iterator for Walk<'_> {
         if self.done {
             return None;
         }
-        let a = if self.t_next[0] <= self.t_next[1] && self.t_next[0] <= self.t_next[2] {
+        let tn = self.t_next;
+        let a = if tn[0] <= tn[1] && tn[0] <= tn[2] {
             0
-        } else if self.t_next[1] <= self.t_next[2] {
+        } else if tn[1] <= tn[2] {
             1
         } else {
             2
         };
-        let t1 = self.t_next[a].min(self.t_exit);
-        let last = t1 >= self.t_exit || !t1.is_finite();
-        let span = Span {
-            t0: self.t,
-            t1: if last { self.t_exit } else { t1.max(self.t) },
-            cell: self.flat(),
-            last,
-        };
-        if last {
+        let t0 = self.t;
+        // `!(t1 < t_exit)` also ends a walk whose crossing is NaN
+        if !(tn[a] < self.t_exit) {
             self.done = true;
-        } else {
-            self.t = span.t1;
-            self.cell[a] += self.step[a];
-            let plane = if self.step[a] > 0 {
-                self.cell[a] + 1
-            } else {
-                self.cell[a]
-            };
-            self.t_next[a] = (plane as f64 * MACROCELL as f64 - self.o[a]) / self.d[a];
+            return Some(Span {
+                t0,
+                t1: self.t_exit,
+                cell: self.flat,
+                last: true,
+            });
         }
+        let t1 = if tn[a] > t0 { tn[a] } else { t0 };
+        let span = Span {
+            t0,
+            t1,
+            cell: self.flat,
+            last: false,
+        };
+        self.t = t1;
+        let c = self.cell[a] + self.step[a];
+        self.cell[a] = c;
+        let dims = self.grid.dims;
+        // stepping from outside the grid into it, or inside it, moves the flat index
+        if c >= 0 && c < dims[a] as i64 {
+            let inside_before = c - self.step[a] >= 0 && c - self.step[a] < dims[a] as i64;
+            if inside_before {
+                let stride = [1, dims[0], dims[0] * dims[1]][a];
+                self.flat = if self.step[a] > 0 {
+                    self.flat + stride
+                } else {
+                    self.flat - stride
+                };
+            }
+        }
+        let plane = if self.step[a] > 0 { c + 1 } else { c };
+        self.t_next[a] = (plane as f64 * MACROCELL as f64 - self.o[a]) * self.inv[a];
         Some(span)
     }
 }
@@ -308,6 +325,7 @@ impl Iterator for Walk<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DVec3;
 
     #[test]
     fn ranges_cover_the_support() {

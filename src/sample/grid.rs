@@ -48,12 +48,16 @@ pub struct Grid<'a, T: Voxel> {
     last: [f64; 3],
     /// Per axis: the last cell's first voxel (`n - 2`, or 0 on a one-voxel axis).
     top: [usize; 3],
+    /// `top` as `f64`.
+    top_f: [f64; 3],
     /// Per axis: the step to the cell's second voxel (the stride, or 0 on a
     /// one-voxel axis).
     step: [usize; 3],
     /// XOR turning a table index into an index in the order of the values: the sign
     /// bit for signed data read as unsigned bits, else 0.
     flip: usize,
+    /// Every index fits an i32 (the SSE2 cell search converts to i32).
+    sse2: bool,
 }
 
 /// A trilinear cell and the position inside it: the flat index of its first voxel,
@@ -88,8 +92,10 @@ impl<'a, T: Voxel> Grid<'a, T> {
             sxy: n[0] * n[1],
             last: n.map(|n| n.saturating_sub(1) as f64),
             top: n.map(|n| n.saturating_sub(2)),
+            top_f: n.map(|n| n.saturating_sub(2) as f64),
             step: std::array::from_fn(|a| if n[a] >= 2 { stride[a] } else { 0 }),
             flip: 0,
+            sse2: n.iter().all(|&n| n < i32::MAX as usize),
         }
     }
 
@@ -127,6 +133,70 @@ impl<'a, T: Voxel> Grid<'a, T> {
         }
     }
 
+    /// The trilinear interpolant of the normalised voxels at `p` (clamped to the
+    /// grid; NaN counts as 0), clamped to [0, 1]: along x, then y, then z.
+    #[inline(always)]
+    pub fn trilinear(&self, p: [f64; 3]) -> f32 {
+        #[cfg(target_arch = "x86_64")]
+        if self.sse2 {
+            // SAFETY: SSE2 is part of x86-64; `sse2` says the indices fit an i32.
+            return unsafe { self.trilinear_sse2(p) };
+        }
+        self.trilinear_scalar(p)
+    }
+
+    #[inline(always)]
+    fn trilinear_scalar(&self, p: [f64; 3]) -> f32 {
+        let c = self.locate(p);
+        let [fx, fy, fz] = c.f;
+        let [c000, c100, c010, c110, c001, c101, c011, c111] = self.cell_values(c.base);
+        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+        let x00 = lerp(c000, c100, fx);
+        let x10 = lerp(c010, c110, fx);
+        let x01 = lerp(c001, c101, fx);
+        let x11 = lerp(c011, c111, fx);
+        lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz).clamp(0.0, 1.0)
+    }
+
+    /// [`Grid::trilinear_scalar`] with the cell search and the interpolation in
+    /// SSE2 registers: the same operations in the same order, so the same bits, in
+    /// about half the instructions.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn trilinear_sse2(&self, p: [f64; 3]) -> f32 {
+        use std::arch::x86_64::*;
+        // x and y in one register, z in another: clamp to [0, last], the cell's
+        // first voxel is the truncation of min(x, top) (the same as min(trunc(x),
+        // top) for x >= 0), the fraction what is left
+        let zero = _mm_setzero_pd();
+        let xy = _mm_set_pd(p[1], p[0]);
+        let xy = _mm_min_pd(_mm_max_pd(xy, zero), _mm_set_pd(self.last[1], self.last[0]));
+        let ixy = _mm_cvttpd_epi32(_mm_min_pd(xy, _mm_set_pd(self.top_f[1], self.top_f[0])));
+        let fxy = _mm_cvtpd_ps(_mm_sub_pd(xy, _mm_cvtepi32_pd(ixy)));
+        let z = _mm_set_sd(p[2]);
+        let z = _mm_min_sd(_mm_max_sd(z, zero), _mm_set_sd(self.last[2]));
+        let iz = _mm_cvttsd_si32(_mm_min_sd(z, _mm_set_sd(self.top_f[2])));
+        let fz = (_mm_cvtsd_f64(z) - iz as f64) as f32;
+        let i = _mm_cvtsi128_si32(ixy) as usize;
+        let j = _mm_cvtsi128_si32(_mm_shuffle_epi32(ixy, 1)) as usize;
+        let base = i + self.sx * j + self.sxy * iz as usize;
+        let [c000, c100, c010, c110, c001, c101, c011, c111] = self.cell_values(base);
+        // x: four lerps at once, lanes (x00, x10, x01, x11)
+        let a = _mm_set_ps(c011, c001, c010, c000);
+        let b = _mm_set_ps(c111, c101, c110, c100);
+        let fx = _mm_shuffle_ps(fxy, fxy, 0b00_00_00_00);
+        let x = _mm_add_ps(a, _mm_mul_ps(_mm_sub_ps(b, a), fx));
+        // y: lanes (x00, x01) towards (x10, x11)
+        let lo = _mm_shuffle_ps(x, x, 0b00_00_10_00);
+        let hi = _mm_shuffle_ps(x, x, 0b00_00_11_01);
+        let fy = _mm_shuffle_ps(fxy, fxy, 0b01_01_01_01);
+        let y = _mm_add_ps(lo, _mm_mul_ps(_mm_sub_ps(hi, lo), fy));
+        // z: lane 0 towards lane 1
+        let y0 = _mm_cvtss_f32(y);
+        let y1 = _mm_cvtss_f32(_mm_shuffle_ps(y, y, 0b00_00_00_01));
+        (y0 + (y1 - y0) * fz).clamp(0.0, 1.0)
+    }
+
     /// The value window.
     pub fn norm(&self) -> Normalize {
         self.norm
@@ -152,6 +222,28 @@ impl<'a, T: Voxel> Grid<'a, T> {
         self.normalise(self.voxels.get(idx))
     }
 
+    /// The normalised voxels at the corners of the cell of [`Grid::locate`] or the
+    /// trilinear search: no bounds check, the indices come from positions clamped to
+    /// the grid (`base <= top`, so the largest index is at most `len - 1`).
+    #[inline(always)]
+    fn cell_values(&self, base: usize) -> [f32; 8] {
+        let [dx, dy, dz] = self.step;
+        // SAFETY: `base` is `i + sx j + sxy k` with each index at most the axis'
+        // `top` (n - 2, or 0 on a one-voxel axis, where the step is 0), so
+        // `base + dx + dy + dz <= (n0 - 1) + sx (n1 - 1) + sxy (n2 - 1) = len - 1`.
+        let [a, b, c, d, e, f, g, h] = unsafe { self.voxels.corners_unchecked(base, dx, dy, dz) };
+        [
+            self.normalise(a),
+            self.normalise(b),
+            self.normalise(c),
+            self.normalise(d),
+            self.normalise(e),
+            self.normalise(f),
+            self.normalise(g),
+            self.normalise(h),
+        ]
+    }
+
     /// The normalised voxels at the corners of a trilinear cell (see
     /// [`Voxels::corners`]), one bounds check.
     #[inline(always)]
@@ -169,29 +261,44 @@ impl<'a, T: Voxel> Grid<'a, T> {
         ]
     }
 
-    /// The range `[min, max]` of the normalised values of the `len` voxels from flat
-    /// index `start` along x (NaN counts as 0, as when it is read). For 8- and 16-bit
-    /// data, the extremes of the raw values, normalised (the table is monotone in the
+    /// The ranges `[min, max]` of the normalised values (NaN counts as 0, as when it
+    /// is read) of the voxels `x0..=x1` of the x row starting at flat index `row`,
+    /// for each window `(x0, x1)` of `windows`, into `out`. For 8- and 16-bit data,
+    /// the extremes of the raw values, normalised (the table is monotone in the
     /// value).
-    pub fn run_range(&self, start: usize, len: usize) -> [f32; 2] {
-        let run = self.voxels.slice(start..start + len);
+    pub fn row_ranges(&self, row: usize, windows: &[(usize, usize)], out: &mut [[f32; 2]]) {
+        let run = self.voxels.slice(row..row + self.n[0]);
         if T::LUT_SIZE > 0 {
-            let (mut lo, mut hi) = (usize::MAX, 0);
-            for v in run.iter() {
-                let k = v.lut_index() ^ self.flip;
-                lo = lo.min(k);
-                hi = hi.max(k);
+            let flip = self.flip;
+            let extremes = |s: &[T]| {
+                s.iter().fold((usize::MAX, 0), |(lo, hi), v| {
+                    let k = v.lut_index() ^ flip;
+                    (lo.min(k), hi.max(k))
+                })
+            };
+            let owned;
+            let values: &[T] = match run.as_slice() {
+                Some(s) => s,
+                None => {
+                    owned = run.iter().collect::<Vec<T>>();
+                    &owned
+                }
+            };
+            for (o, &(x0, x1)) in out.iter_mut().zip(windows) {
+                let (lo, hi) = extremes(&values[x0..=x1]);
+                *o = [self.lut[lo ^ flip], self.lut[hi ^ flip]];
             }
-            [self.lut[lo ^ self.flip], self.lut[hi ^ self.flip]]
         } else {
-            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-            for v in run.iter() {
-                // normalised values are never NaN: plain comparisons are min and max
-                let v = self.normalise(v);
-                lo = if v < lo { v } else { lo };
-                hi = if v > hi { v } else { hi };
+            for (o, &(x0, x1)) in out.iter_mut().zip(windows) {
+                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                for v in run.slice(x0..x1 + 1).iter() {
+                    // normalised values are never NaN: plain comparisons are min and max
+                    let v = self.normalise(v);
+                    lo = if v < lo { v } else { lo };
+                    hi = if v > hi { v } else { hi };
+                }
+                *o = [lo, hi];
             }
-            [lo, hi]
         }
     }
 

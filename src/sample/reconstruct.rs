@@ -81,16 +81,7 @@ impl<T: Voxel> Field for Trilinear<'_, T> {
 
     #[inline(always)]
     fn value(&self, p: DVec3) -> f32 {
-        let g = &self.grid;
-        let c = g.locate(p.to_array());
-        let [dx, dy, dz] = c.d;
-        let [fx, fy, fz] = c.f;
-        let [c000, c100, c010, c110, c001, c101, c011, c111] = g.corners(c.base, dx, dy, dz);
-        let x00 = lerp(c000, c100, fx);
-        let x10 = lerp(c010, c110, fx);
-        let x01 = lerp(c001, c101, fx);
-        let x11 = lerp(c011, c111, fx);
-        lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz).clamp(0.0, 1.0)
+        self.grid.trilinear(p.to_array())
     }
 
     fn gradient(&self, p: DVec3) -> DVec3 {
@@ -269,11 +260,6 @@ impl<T: Voxel> Field for Sampler<'_, T> {
     fn cell_corners(&self, c: [usize; 3]) -> [f32; 8] {
         self.grid().cell_corners(c)
     }
-}
-
-#[inline(always)]
-fn lerp(a: f32, b: f32, t: f32) -> f32 {
-    a + (b - a) * t
 }
 
 /// The cubic B-spline over `get` (mirror boundary, matching the prefilter), clamped

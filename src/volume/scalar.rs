@@ -317,6 +317,31 @@ impl<'a, T: Voxel> Voxels<'a, T> {
         ]
     }
 
+    /// [`Voxels::corners`] without the bounds check, for callers that derive the
+    /// indices from positions clamped to the grid.
+    ///
+    /// # Safety
+    /// `base + dx + dy + dz < self.len()` (the largest of the eight indices).
+    #[inline(always)]
+    pub unsafe fn corners_unchecked(&self, base: usize, dx: usize, dy: usize, dz: usize) -> [T; 8] {
+        let last = base + dx + dy + dz;
+        debug_assert!(last < self.len, "voxel index {last} out of {}", self.len);
+        let p = self.bytes.as_ptr();
+        let size = std::mem::size_of::<T>();
+        // SAFETY: every index is at most `last < len` (the caller's promise).
+        let at = |i: usize| unsafe { p.add(i * size).cast::<T>().read_unaligned() };
+        [
+            at(base),
+            at(base + dx),
+            at(base + dy),
+            at(base + dy + dx),
+            at(base + dz),
+            at(base + dz + dx),
+            at(base + dz + dy),
+            at(last),
+        ]
+    }
+
     /// The same bytes read as another type of the same size (the raw bits of
     /// signed 8- and 16-bit voxels as unsigned ones, for tables indexed by bits).
     pub fn reinterpret<U: Voxel>(self) -> Voxels<'a, U> {

@@ -137,24 +137,42 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
         return take(0, n, consumer).0;
     };
     let mut taken = 0u64;
+    // samples before `i` are handled; those from `i` to the start of the current
+    // span lie in cells that were passed over, while `gap` is true
     let mut i = 0;
+    let mut gap = false;
     for span in grid.walk(index, ray.t_enter, ray.t_exit) {
+        if consumer.skippable(span.cell, grid.range(span.cell)) {
+            gap = true;
+            if !span.last {
+                continue;
+            }
+            if i < n {
+                // the last samples are passed over: the ray ends either way
+                let _ = consumer.skip(i, n);
+            }
+            return taken;
+        }
+        if gap {
+            let j = lattice.first_at_or_after(span.t0).max(i);
+            gap = false;
+            if j > i {
+                if consumer.skip(i, j).is_break() {
+                    return taken;
+                }
+                i = j;
+            }
+        }
         let j = if span.last {
             n
         } else {
             lattice.first_at_or_after(span.t1).max(i)
         };
         if j > i {
-            if consumer.skippable(span.cell, grid.range(span.cell)) {
-                if consumer.skip(i, j).is_break() {
-                    return taken;
-                }
-            } else {
-                let (count, stopped) = take(i, j, consumer);
-                taken += count;
-                if stopped {
-                    return taken;
-                }
+            let (count, stopped) = take(i, j, consumer);
+            taken += count;
+            if stopped {
+                return taken;
             }
             i = j;
         }

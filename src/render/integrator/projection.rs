@@ -55,10 +55,17 @@ impl Consumer for Extremum {
 
     #[inline(always)]
     fn take(&mut self, _i: usize, _t: f64, f: f32) -> ControlFlow<()> {
+        // samples are never NaN: plain comparisons (one instruction each)
         self.best = if self.max {
-            self.best.max(f)
+            if f > self.best {
+                f
+            } else {
+                self.best
+            }
+        } else if f < self.best {
+            f
         } else {
-            self.best.min(f)
+            self.best
         };
         ControlFlow::Continue(())
     }
