@@ -75,6 +75,8 @@ pub struct March {
     shift: f64,
     full_steps: usize,
     tail: bool,
+    /// The first segment that is a whole step: 1, or 2 when jittered.
+    first_full: usize,
 }
 
 impl March {
@@ -99,6 +101,7 @@ impl March {
             shift,
             full_steps,
             tail,
+            first_full: if shift == 0.0 { 1 } else { 2 },
         }
     }
 
@@ -137,7 +140,7 @@ impl March {
     /// step long: every segment but a jittered first one and the shorter last one.
     #[inline(always)]
     pub fn is_full_step(&self, i: usize) -> bool {
-        (i >= 2 || self.shift == 0.0) && i <= self.full_steps
+        i >= self.first_full && i <= self.full_steps
     }
 
     /// The step.
@@ -172,9 +175,16 @@ impl Lattice for Midpoints<'_> {
         self.0.len() - 1
     }
 
+    /// The middle of a whole step directly from its index, the others from their
+    /// ends.
     #[inline(always)]
     fn t(&self, i: usize) -> f64 {
-        0.5 * (self.0.t(i) + self.0.t(i + 1))
+        let m = self.0;
+        if m.is_full_step(i + 1) {
+            m.t0 + (i as i64 as f64 + 0.5 + m.shift) * m.dt
+        } else {
+            0.5 * (m.t(i) + m.t(i + 1))
+        }
     }
 
     #[inline]

@@ -61,7 +61,7 @@ impl Transfer1D {
     /// `n` evenly spaced evaluations over [0, 1], the first at 0 and the last at 1 (`n` is
     /// raised to 2 if smaller).
     pub fn table(&self, n: usize) -> Table1D {
-        let n = n.max(2);
+        let n = n.clamp(2, 1 << 24);
         let last = (n - 1) as f32;
         Table1D {
             entries: (0..n).map(|i| self.eval(i as f32 / last)).collect(),
@@ -79,13 +79,18 @@ pub struct Table1D {
 impl Table1D {
     /// RGBA at `v`, linearly interpolated between the two nearest entries; `v` is clamped to
     /// [0, 1] and NaN gives entry 0.
+    #[inline(always)]
     pub fn lookup(&self, v: f32) -> [f32; 4] {
         let last = self.entries.len() - 1;
         let x = clamp_unit(v) * last as f32;
-        // x >= 0, so the cast truncates towards zero = floor.
-        let i = (x as usize).min(last - 1);
+        // x is in [0, last]: truncation is floor; one instruction through i32, where a
+        // checked conversion to usize takes several (tables have fewer than 2^31
+        // entries: see `table`)
+        let i = (x as i32 as usize).min(last - 1);
         let t = x - i as f32;
-        lerp4(self.entries[i], self.entries[i + 1], t)
+        // `i + 1 <= last`: in bounds (the bounds check folds away with `min`)
+        let (a, b) = (self.entries[i], self.entries[i + 1]);
+        lerp4(a, b, t)
     }
 
     /// Number of entries (at least 2).
@@ -121,16 +126,19 @@ impl Table1D {
 }
 
 /// `(1 - t) a + t b` per component: exact at `t = 0` and `t = 1`.
+#[inline(always)]
 pub(crate) fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
     std::array::from_fn(|c| (1.0 - t) * a[c] + t * b[c])
 }
 
-/// `x` clamped to [0, 1], NaN to 0.
+/// `x` clamped to [0, 1], NaN to 0 (two comparisons: `x > 0` is false for NaN).
+#[inline(always)]
 pub(crate) fn clamp_unit(x: f32) -> f32 {
-    if x.is_nan() {
-        0.0
+    let x = if x > 0.0 { x } else { 0.0 };
+    if x < 1.0 {
+        x
     } else {
-        x.clamp(0.0, 1.0)
+        1.0
     }
 }
 

@@ -243,32 +243,26 @@ impl<F: Field> Consumer for Midpoint<'_, F> {
     #[inline(always)]
     fn take(&mut self, i: usize, t: f64, v: f32) -> ControlFlow<()> {
         let p = self.pass;
-        let length = self.march.t(i + 1) - self.march.t(i);
-        if length <= 0.0 {
-            return ControlFlow::Continue(());
-        }
         let full = self.march.is_full_step(i + 1);
         let pos = self.ray.index.at(t);
-        let table = if full { &p.full_step } else { &p.table };
-        let (rgba, grad) = p.lookup(table, self.field, pos, v);
-        let a = if full {
-            rgba[3]
+        let (rgba, grad, a) = if full {
+            // opacity already corrected for a whole step
+            let (rgba, grad) = p.lookup(&p.full_step, self.field, pos, v);
+            (rgba, grad, rgba[3])
         } else {
-            correct_opacity(rgba[3], (length / p.reference_step) as f32)
+            let length = self.march.t(i + 1) - self.march.t(i);
+            if length <= 0.0 {
+                return ControlFlow::Continue(());
+            }
+            let (rgba, grad) = p.lookup(&p.table, self.field, pos, v);
+            let a = correct_opacity(rgba[3], (length / p.reference_step) as f32);
+            (rgba, grad, a)
         };
         if a <= 0.0 {
             return ControlFlow::Continue(());
         }
         let base = Vec3::new(rgba[0], rgba[1], rgba[2]);
-        let c = shade(
-            p.shader.as_ref(),
-            self.field,
-            self.ray,
-            t,
-            grad,
-            base,
-            self.to_eye,
-        );
+        let c = shade(p.shader.as_ref(), self.field, self.ray, t, grad, base, self.to_eye);
         if self.acc.add(c, a) {
             ControlFlow::Break(())
         } else {
