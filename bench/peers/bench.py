@@ -3,6 +3,7 @@
 repetition), takes medians, compares each peer's image with the reference of the volume it
 read, and writes RESULTS/results.md (table), results.csv and speed_vs_error.png.
 Usage: bench.py --results DIR [--data DIR] [--reps 5] [--peers volcast,vtk,teem,volpack]
+       bench.py --results DIR --plot-only
 (run_all.sh installs the peers, makes the volume and the reference first)."""
 import argparse
 import csv
@@ -51,26 +52,30 @@ def plot(rows, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 4, figsize=(18, 4.5))
+    floor = 1e-3            # errors below this (exact within round-off) are drawn at it
+    fig, axes = plt.subplots(1, 4, figsize=(18, 4.8))
     markers = {"volcast": "o", "vtk": "s", "teem": "^", "volpack": "D", "volpack-raw": "d"}
+    handles = {}
     for ax, mode in zip(axes, C.MODES):
-        for peer in markers:
+        for i, peer in enumerate(markers):
             pts = [r for r in rows if r["peer"] == peer and r["mode"] == mode]
             if not pts:
                 continue
-            err = [(1 - r["iou"]) if mode == "iso" else r["rmse"] for r in pts]
-            ax.scatter(err, [r["seconds"] for r in pts], marker=markers[peer], label=LABEL[peer])
+            err = [max((1 - r["iou"]) if mode == "iso" else r["rmse"], floor) for r in pts]
+            handles[peer] = ax.scatter(err, [r["seconds"] for r in pts], marker=markers[peer],
+                                       color=f"C{i}", label=LABEL[peer])
             for e, r in zip(err, pts):
                 ax.annotate(r["view"], (e, r["seconds"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xscale("symlog", linthresh=0.01)
+        ax.set_xlim(floor / 2, None)
         ax.set_xlabel("1 - IoU of covered pixels" if mode == "iso" else "RMSE (grey levels of 255)")
         ax.set_ylabel("seconds per frame")
         ax.set_title(mode)
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=8)
-    fig.suptitle("Speed against error, 512 x 512, 2 threads (lower left is better)")
-    fig.tight_layout()
+    fig.legend(handles.values(), [LABEL[p] for p in handles], loc="upper right", fontsize=8)
+    fig.suptitle(f"Speed against error, 512 x 512, 2 threads (lower left is better; errors < {floor} drawn at {floor})")
+    fig.tight_layout(rect=(0, 0, 0.9, 1))
     fig.savefig(path, dpi=110)
 
 
@@ -81,7 +86,15 @@ def main():
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--renders", type=int, default=5, help="warm renders per VTK/VolPack call")
     ap.add_argument("--peers", default=",".join(PEERS))
+    ap.add_argument("--plot-only", action="store_true", help="redraw the plot from results.csv")
     a = ap.parse_args()
+    if a.plot_only:
+        rows = list(csv.DictReader(open(os.path.join(a.results, "results.csv"))))
+        for r in rows:
+            for k in ("seconds", "ratio", "rmse", "iou"):
+                r[k] = float(r[k])
+        plot(rows, os.path.join(a.results, "speed_vs_error.png"))
+        return
     images = os.path.join(a.results, "images")
     refs = os.path.join(a.data, "reference")
     os.makedirs(images, exist_ok=True)
@@ -100,8 +113,8 @@ def main():
 
     cases = sorted({(r["peer"], r["mode"], r["view"]) for r in records},
                    key=lambda c: (C.VIEWS.index(c[2]), C.MODES.index(c[1]), list(LABEL).index(c[0])))
-    secs = {c: statistics.median(r["seconds"] for r in records if (r["peer"], r["mode"], r["view"]) == c)
-            for c in cases}
+    times = {c: [r["seconds"] for r in records if (r["peer"], r["mode"], r["view"]) == c] for c in cases}
+    secs = {c: statistics.median(t) for c, t in times.items()}
     rows = []
     for peer, mode, view in cases:
         e = error_of(peer, mode, view, images, refs)
@@ -109,19 +122,20 @@ def main():
         rows.append(dict(peer=peer, mode=mode, view=view, seconds=secs[(peer, mode, view)],
                          ratio=secs[(peer, mode, view)] / base if base else float("nan"),
                          rmse=e["rmse"], iou=e.get("iou", float("nan")),
-                         reps=sum(1 for r in records if (r["peer"], r["mode"], r["view"]) == (peer, mode, view))))
+                         reps=len(times[(peer, mode, view)]), fastest=min(times[(peer, mode, view)]),
+                         slowest=max(times[(peer, mode, view)])))
     with open(os.path.join(a.results, "results.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
     lines = [f"Peer benchmark, {time.strftime('%Y-%m-%d %H:%M')}, {machine()}; volcast = "
              f"{os.environ.get('VOLCAST', '/work/main/target/release/volcast')}; {a.reps} repetitions, medians.",
-             "", "| view | mode | peer | seconds per frame | ratio to volcast | error vs reference |",
-             "| --- | --- | --- | --- | --- | --- |"]
+             "", "| view | mode | peer | seconds per frame | (fastest - slowest) | ratio to volcast | error vs reference |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         err = f"IoU {r['iou']:.3f}, shade RMSE {r['rmse']:.2f}" if r["mode"] == "iso" else f"RMSE {r['rmse']:.3f}"
         lines.append(f"| {r['view']} | {r['mode']} | {LABEL[r['peer']]} | {r['seconds']:.3f} | "
-                     f"{r['ratio']:.2f} | {err} |")
+                     f"{r['fastest']:.3f} - {r['slowest']:.3f} | {r['ratio']:.2f} | {err} |")
     table = "\n".join(lines) + "\n"
     open(os.path.join(a.results, "results.md"), "w").write(table)
     print(table)

@@ -13,6 +13,7 @@ results=${1:-/work/peers-results}
 data=${2:-/work/peers-data}
 export VOLCAST=${VOLCAST:-/work/main/target/release/volcast}
 reps=${REPS:-5}
+export PYTHONDONTWRITEBYTECODE=1   # no __pycache__ in the repository
 
 [ -x "$VOLCAST" ] || { echo "run_all: no volcast binary at $VOLCAST (build it, or set VOLCAST)" >&2; exit 1; }
 
