@@ -106,7 +106,13 @@ fn check_prints_the_plan_and_writes_nothing() {
     ] {
         assert!(out.contains(needle), "`{needle}` missing from:\n{out}");
     }
-    // a MIP computes neither gradients nor tables
+    // the composite skips where its transfer function is transparent
+    assert!(
+        out.contains("empty-space skipping") && out.contains("transfer function is transparent"),
+        "{out}"
+    );
+    // a MIP computes neither gradients nor tables, skips cells that cannot beat its
+    // maximum, and says so; --no-skip takes the grid away
     let scene = root().join("scenes/mip_head.toml");
     let o = volcast(tmp.path(), &["check", scene.to_str().unwrap()]);
     let out = String::from_utf8_lossy(&o.stdout);
@@ -114,6 +120,10 @@ fn check_prints_the_plan_and_writes_nothing() {
         !out.contains("gradient") && !out.contains("transfer table"),
         "{out}"
     );
+    assert!(out.contains("cannot beat the running maximum"), "{out}");
+    let o = volcast(tmp.path(), &["check", scene.to_str().unwrap(), "--no-skip"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && !out.contains("skipping"), "{out}");
     assert_eq!(
         std::fs::read_dir(tmp.path()).unwrap().count(),
         0,
@@ -199,4 +209,41 @@ fn missing_files_fail_with_a_message() {
     let o = volcast(tmp.path(), &["info", "nope.nrrd"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("nope.nrrd"), "{}", stderr(&o));
+}
+
+#[test]
+fn bench_speed_quick_measures_every_mode() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = volcast(
+        &root(),
+        &[
+            "bench",
+            "speed",
+            "--quick",
+            "--threads",
+            "2",
+            "--out",
+            tmp.path().to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let md = String::from_utf8_lossy(&o.stdout);
+    for mode in volcast::bench::MODES {
+        assert!(md.contains(&format!("| {mode} |")), "{mode} missing:\n{md}");
+    }
+    assert!(
+        md.contains("ct_engine") && md.contains("blobs 64^3"),
+        "{md}"
+    );
+    let csv = std::fs::read_to_string(tmp.path().join("speed.csv")).unwrap();
+    // a header and 2 volumes x 8 modes x 2 thread counts
+    assert_eq!(csv.lines().count(), 1 + 2 * 8 * 2, "{csv}");
+    // skipping skips on the blobs (air around them), and never takes more than the march
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("speed.json")).unwrap())
+            .unwrap();
+    for row in json["rows"].as_array().unwrap() {
+        let skipped = row["skipped"].as_f64().unwrap();
+        assert!((0.0..1.0).contains(&skipped), "{row}");
+    }
 }

@@ -505,10 +505,10 @@ fn special_files_are_refused_quickly() {
 
 #[test]
 fn synthetic_volumes_are_computed_into_memory() {
-    let s = volcast::volume::Synthetic {
-        field: volcast::volume::synthetic::Field::Gaussian { sigma: 0.25 },
-        sizes: [4, 4, 4],
-    };
+    let s = volcast::volume::Synthetic::new(
+        volcast::volume::synthetic::Field::Gaussian { sigma: 0.25 },
+        [4, 4, 4],
+    );
     assert_eq!(
         VolumeSource::Synthetic(s).storage().unwrap(),
         Storage::Read {

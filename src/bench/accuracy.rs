@@ -443,10 +443,7 @@ impl Xorshift {
 /// The synthetic volume of `field` on the bench grid, as f32 voxels, plus the map
 /// from world to index coordinates.
 fn volume(field: Field) -> Result<(Vec<f32>, glam::DMat3), BenchError> {
-    let s = Synthetic {
-        field,
-        sizes: [GRID; 3],
-    };
+    let s = Synthetic::new(field, [GRID; 3]);
     let v = s.load(&Limits::default())?;
     let VolumeData::F32(data) = v.data else {
         unreachable!("synthetic volumes are float32")

@@ -1,4 +1,5 @@
-//! `volcast bench accuracy`: speed against error, measured (issue 4).
+//! `volcast bench accuracy`: speed against error, measured (issue 4); `volcast bench
+//! speed` (`speed.rs`): whole frames of every mode, with and without threads.
 //!
 //! Every render mode is rendered on the analytic fields of REFERENCE.md through the
 //! real pipeline, over steps, interpolations, gradient estimators and integration
@@ -10,6 +11,7 @@
 
 mod accuracy;
 mod plot;
+mod speed;
 mod truth;
 
 use std::fmt::Write as _;
@@ -18,6 +20,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 pub use accuracy::{GRID, STEPS};
+pub use speed::{speed, SpeedOptions, SpeedReport, SpeedRow, MODES};
 
 /// Errors of a bench run.
 #[derive(Debug, thiserror::Error)]

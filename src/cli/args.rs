@@ -34,6 +34,26 @@ pub enum BenchCommand {
     /// against the closed forms. Prints the summary and writes accuracy.csv,
     /// accuracy.json, accuracy.md and images/accuracy.png into --out.
     Accuracy(AccuracyArgs),
+    /// Whole frames of every render mode on the shipped engine CT and on the peer
+    /// benchmark's field at 256^3 and 512^3 (uint8): ms per frame, samples per second
+    /// taken and nominal, the share skipped, peak memory, and the speed-up from one
+    /// thread to all. Prints a Markdown table; with --out, also writes speed.md,
+    /// speed.csv and speed.json.
+    Speed(SpeedArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct SpeedArgs {
+    /// A CI-sized run (a 64^3 field, 64 x 64 images, one repeat): seconds, not minutes.
+    #[arg(long)]
+    pub quick: bool,
+    /// Folder for speed.md, speed.csv and speed.json.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// The most worker threads to measure (default: one per core); one thread is
+    /// always measured too.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub threads: Option<u16>,
 }
 
 #[derive(Debug, Args)]

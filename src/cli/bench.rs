@@ -1,11 +1,11 @@
-//! `volcast bench accuracy`: runs the accuracy bench, prints its summary, writes
-//! its files.
+//! `volcast bench accuracy` and `volcast bench speed`: run the benches, print their
+//! summaries, write their files.
 
 use std::process::ExitCode;
 
 use volcast::bench;
 
-use super::args::AccuracyArgs;
+use super::args::{AccuracyArgs, SpeedArgs};
 use super::render::with_threads;
 
 /// Runs the accuracy bench.
@@ -32,6 +32,26 @@ pub fn accuracy(a: AccuracyArgs) -> anyhow::Result<ExitCode> {
     println!("{}", report.summary());
     for f in report.write(&a.out)? {
         eprintln!("wrote {}", f.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs the speed bench.
+pub fn speed(a: SpeedArgs) -> anyhow::Result<ExitCode> {
+    let opts = bench::SpeedOptions::new(a.quick, a.threads.map(usize::from));
+    let mut command = String::from("volcast bench speed");
+    if a.quick {
+        command += " --quick";
+    }
+    if let Some(t) = a.threads {
+        command += &format!(" --threads {t}");
+    }
+    let report = bench::speed(&opts, &command, &mut |line| eprintln!("bench: {line}"))?;
+    println!("{}", report.markdown());
+    if let Some(dir) = &a.out {
+        for f in report.write(dir)? {
+            eprintln!("wrote {}", f.display());
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -21,5 +21,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Check(a) => check::run(a),
         Command::Info(a) => info::run(a),
         Command::Bench(args::BenchCommand::Accuracy(a)) => bench::accuracy(a),
+        Command::Bench(args::BenchCommand::Speed(a)) => bench::speed(a),
     }
 }

@@ -198,10 +198,23 @@ pub fn render_films(
     limits: &Limits,
 ) -> Result<(Vec<RenderedView>, Summary), Error> {
     let start = Instant::now();
-    let header = scene.volume.source.header()?;
-    let plan = Plan::build(scene, &header, opts)?;
     let volume = scene.volume.source.load(limits)?;
-    let norm = value_window(scene, &volume)?;
+    let (views, mut summary) = render_films_of(scene, &volume, opts)?;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok((views, summary))
+}
+
+/// [`render_films`] of a volume already loaded (`volume` must be the scene's: the
+/// benchmarks render many scenes of one volume). The summary's time excludes
+/// loading.
+pub fn render_films_of(
+    scene: &Scene,
+    volume: &Volume,
+    opts: &RunOptions,
+) -> Result<(Vec<RenderedView>, Summary), Error> {
+    let start = Instant::now();
+    let plan = Plan::build(scene, &volume.header, opts)?;
+    let norm = value_window(scene, volume)?;
     let collected = std::sync::Mutex::new(Vec::new());
     let sink = |fv: &FrameViews| {
         let mut c = collected.lock().expect("no panics while holding the lock");
@@ -221,7 +234,7 @@ pub fn render_films(
         prepare: &|| Ok(()),
         sink: &sink,
     };
-    let mut summary = render_passes(scene, &plan, &volume, norm, &jobs, &emit)?;
+    let mut summary = render_passes(scene, &plan, volume, norm, &jobs, &emit)?;
     summary.seconds = start.elapsed().as_secs_f64();
     let mut views = collected
         .into_inner()

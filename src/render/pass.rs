@@ -694,10 +694,13 @@ fn build_typed<'v, T: Voxel>(
                     MacroGrid::build(sizes, Support::Cubic, |row, windows, out| {
                         for (o, &(x0, x1)) in out.iter_mut().zip(windows) {
                             // the spline is clamped to [0, 1], and so are its extremes
-                            *o = c[row + x0..=row + x1].iter().fold([1.0f32, 0.0f32], |[lo, hi], &v| {
-                                let v = v.clamp(0.0, 1.0);
-                                [lo.min(v), hi.max(v)]
-                            });
+                            *o = c[row + x0..=row + x1].iter().fold(
+                                [1.0f32, 0.0f32],
+                                |[lo, hi], &v| {
+                                    let v = v.clamp(0.0, 1.0);
+                                    [lo.min(v), hi.max(v)]
+                                },
+                            );
                         }
                     })
                 }

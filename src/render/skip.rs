@@ -138,11 +138,13 @@ impl MacroGrid {
     ) -> Self {
         Self::build(n, support, |row, windows, out| {
             for (o, &(x0, x1)) in out.iter_mut().zip(windows) {
-                *o = (row + x0..=row + x1)
-                    .fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], i| {
+                *o = (row + x0..=row + x1).fold(
+                    [f32::INFINITY, f32::NEG_INFINITY],
+                    |[lo, hi], i| {
                         let v = value(i);
                         [lo.min(v), hi.max(v)]
-                    });
+                    },
+                );
             }
         })
     }
@@ -283,8 +285,8 @@ impl Iterator for Walk<'_> {
             2
         };
         let t0 = self.t;
-        // `!(t1 < t_exit)` also ends a walk whose crossing is NaN
-        if !(tn[a] < self.t_exit) {
+        // a NaN crossing (not `< t_exit`) ends the walk too
+        if tn[a].partial_cmp(&self.t_exit) != Some(std::cmp::Ordering::Less) {
             self.done = true;
             return Some(Span {
                 t0,

@@ -262,7 +262,15 @@ impl<F: Field> Consumer for Midpoint<'_, F> {
             return ControlFlow::Continue(());
         }
         let base = Vec3::new(rgba[0], rgba[1], rgba[2]);
-        let c = shade(p.shader.as_ref(), self.field, self.ray, t, grad, base, self.to_eye);
+        let c = shade(
+            p.shader.as_ref(),
+            self.field,
+            self.ray,
+            t,
+            grad,
+            base,
+            self.to_eye,
+        );
         if self.acc.add(c, a) {
             ControlFlow::Break(())
         } else {

@@ -13,10 +13,7 @@ impl Resolver<'_> {
             ("spacing", v.spacing.as_ref().map(|s| s.span())),
             ("offset", v.offset.as_ref().map(|s| s.span())),
         ];
-        let placeholder = VolumeSource::Synthetic(Synthetic {
-            field: Field::MarschnerLobb,
-            sizes: [2, 2, 2],
-        });
+        let placeholder = VolumeSource::Synthetic(Synthetic::new(Field::MarschnerLobb, [2, 2, 2]));
         let source = match (&v.path, &v.synthetic) {
             (Some(p), Some(s)) => {
                 self.err(s.span(), "give either `path` or `synthetic`, not both");
@@ -24,11 +21,11 @@ impl Resolver<'_> {
                 placeholder
             }
             (None, None) => {
-                self.err(t.span(), "[volume] needs `path` (a .nrrd/.nhdr or raw file) or `synthetic` (gaussian, ball, sphere-distance, marschner-lobb)");
+                self.err(t.span(), "[volume] needs `path` (a .nrrd/.nhdr or raw file) or `synthetic` (gaussian, ball, sphere-distance, marschner-lobb, blobs)");
                 placeholder
             }
             (None, Some(s)) => {
-                self.not_for("by synthetic volumes (raw files only)", &raw_keys[1..]);
+                self.not_for("by synthetic volumes (raw files only)", &raw_keys[2..]);
                 if let Some(f) = &v.format {
                     self.err(f.span(), "`format` is not used by synthetic volumes");
                 }
@@ -37,7 +34,7 @@ impl Resolver<'_> {
             (Some(p), None) => self.file_source(v, p, &raw_keys).unwrap_or(placeholder),
         };
         let window = window.or(match source {
-            VolumeSource::Synthetic(_) => Some([0.0, 1.0]),
+            VolumeSource::Synthetic(s) => Some([0.0, s.max_value()]),
             _ => None,
         });
         let crop = v.crop.as_ref().and_then(|c| {
@@ -63,7 +60,13 @@ impl Resolver<'_> {
         v: &VolumeTable,
         s: &Spanned<String>,
     ) -> Option<VolumeSource> {
-        let kinds = ["gaussian", "ball", "sphere-distance", "marschner-lobb"];
+        let kinds = [
+            "gaussian",
+            "ball",
+            "sphere-distance",
+            "marschner-lobb",
+            "blobs",
+        ];
         let sizes = self.sizes(&v.sizes, [64, 64, 64], 2);
         let positive = |x: f64| x > 0.0;
         let field = match s.get_ref().as_str() {
@@ -102,16 +105,20 @@ impl Resolver<'_> {
                     Field::SphereDistance { radius }
                 }
             }
-            "marschner-lobb" => {
+            "marschner-lobb" | "blobs" => {
                 for (k, sp) in [("sigma", &v.sigma), ("radius", &v.radius)] {
                     if let Some(sp) = sp {
                         self.err(
                             sp.span(),
-                            format!("`{k}` is not used by the marschner-lobb field"),
+                            format!("`{k}` is not used by the {} field", s.get_ref()),
                         );
                     }
                 }
-                Field::MarschnerLobb
+                if s.get_ref() == "blobs" {
+                    Field::Blobs
+                } else {
+                    Field::MarschnerLobb
+                }
             }
             other => {
                 let hint = suggest(other, kinds)
@@ -127,7 +134,23 @@ impl Resolver<'_> {
                 return None;
             }
         };
-        Some(VolumeSource::Synthetic(Synthetic { field, sizes }))
+        let scalar_type = self
+            .choice(
+                "type",
+                &v.ty,
+                &[
+                    ("float32", Some(ScalarType::Float32)),
+                    ("uint8", Some(ScalarType::Uint8)),
+                    ("uint16", Some(ScalarType::Uint16)),
+                ],
+                Some(ScalarType::Float32),
+            )
+            .unwrap_or(ScalarType::Float32);
+        Some(VolumeSource::Synthetic(Synthetic {
+            field,
+            sizes,
+            scalar_type,
+        }))
     }
 
     pub(super) fn sizes(&mut self, v: &Sp<Vec<i64>>, default: [usize; 3], min: i64) -> [usize; 3] {
