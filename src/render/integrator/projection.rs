@@ -9,7 +9,7 @@ use std::ops::ControlFlow;
 
 use super::xray::Trapezoid;
 use super::{drive, Consumer, Counts, Integrand, PixelRay};
-use crate::render::march::March;
+use crate::render::march::{Lattice, March};
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;
 
@@ -86,12 +86,93 @@ fn extremum<F: Field>(
         },
         max,
     };
-    let taken = drive(march, field, ray, grid, &mut e);
-    let counts = Counts {
-        taken,
-        nominal: march.len() as u64,
+    let nominal = march.len() as u64;
+    let taken = match grid {
+        Some(g) => match brightest_first(field, ray, march, g, &mut e) {
+            Some(taken) => taken,
+            None => drive(march, field, ray, grid, &mut e),
+        },
+        None => drive(march, field, ray, None, &mut e),
     };
-    ([e.best, 0.0, 0.0, 0.0], counts)
+    ([e.best, 0.0, 0.0, 0.0], Counts { taken, nominal })
+}
+
+/// Most macrocells a ray's spans are listed for (a 512^3 volume's diagonal crosses
+/// about 200); longer walks go in order.
+const MAX_SPANS: usize = 320;
+
+/// The extremum is the same whatever order the samples come in, and it grows fastest
+/// from the cell that can hold the largest value: the ray's macrocells are listed
+/// first, the one with the largest extreme of its range (the maximum for MIP, the
+/// minimum for MinIP) is sampled first, then the others in order, each passed over
+/// when it cannot beat the running extremum. The samples are those of the march; the
+/// result is the same bits as in order. Returns the samples taken, or `None` (nothing
+/// taken) when the ray crosses more than [`MAX_SPANS`] macrocells (or has more than
+/// 2^32 samples).
+fn brightest_first<F: Field>(
+    field: &F,
+    ray: &PixelRay,
+    march: &March,
+    grid: &MacroGrid,
+    e: &mut Extremum,
+) -> Option<u64> {
+    let n = march.len();
+    if n > u32::MAX as usize || grid.len() > u32::MAX as usize {
+        return None;
+    }
+    // (first sample, end, cell) of each span holding samples
+    let mut spans = [std::mem::MaybeUninit::<(u32, u32, u32)>::uninit(); MAX_SPANS];
+    let mut count = 0;
+    let (mut best_key, mut best_span) = (f32::NEG_INFINITY, 0);
+    let mut i = 0;
+    for span in grid.walk(&ray.index, ray.t_enter, ray.t_exit) {
+        let j = if span.last {
+            n
+        } else {
+            march.first_at_or_after(span.t1).max(i)
+        };
+        if j > i {
+            if count == MAX_SPANS {
+                return None;
+            }
+            let [lo, hi] = grid.range(span.cell);
+            let key = if e.max { hi } else { -lo };
+            if key > best_key {
+                (best_key, best_span) = (key, count);
+            }
+            spans[count].write((i as u32, j as u32, span.cell as u32));
+            count += 1;
+            i = j;
+        }
+        if span.last {
+            break;
+        }
+    }
+    if i < n {
+        return None;
+    }
+    // SAFETY: the first `count` entries were written above; `MaybeUninit<T>` has the
+    // layout of `T`.
+    let spans: &[(u32, u32, u32)] =
+        unsafe { &*(std::ptr::addr_of!(spans[..count]) as *const [(u32, u32, u32)]) };
+    let mut taken = 0u64;
+    let mut sample = |e: &mut Extremum, (a, b, cell): (u32, u32, u32)| {
+        if e.skippable(0, grid.range(cell as usize)) {
+            return;
+        }
+        for k in a as usize..b as usize {
+            let t = march.t(k);
+            let _ = e.take(k, t, field.value(ray.index.at(t)));
+        }
+        taken += u64::from(b - a);
+    };
+    sample(e, spans[best_span]);
+    for (s, &span) in spans.iter().enumerate() {
+        if s != best_span {
+            sample(e, span);
+        }
+    }
+    Some(taken)
 }
 
 impl Integrand for Mip {
