@@ -125,10 +125,12 @@ impl Table1D {
     }
 }
 
-/// `(1 - t) a + t b` per component: exact at `t = 0` and `t = 1`.
+/// `(1 - t) a + t b` per component: exact at `t = 0` and `t = 1` (four lanes at once,
+/// the same operations per lane as in scalar code).
 #[inline(always)]
 pub(crate) fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
-    std::array::from_fn(|c| (1.0 - t) * a[c] + t * b[c])
+    use glam::Vec4;
+    (Vec4::splat(1.0 - t) * Vec4::from_array(a) + Vec4::splat(t) * Vec4::from_array(b)).to_array()
 }
 
 /// `x` clamped to [0, 1], NaN to 0 (two comparisons: `x > 0` is false for NaN).

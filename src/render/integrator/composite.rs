@@ -149,20 +149,20 @@ impl Composite {
             + self.transparent.len()
     }
 
-    /// RGBA of value `v` at `p` (index space; read for the gradient magnitude of 2D
-    /// tables), with the gradient when one was computed.
+    /// RGBA of value `v` at `p()` (index space; asked for the gradient magnitude of
+    /// 2D tables only), with the gradient when one was computed.
     #[inline(always)]
     fn lookup<F: Field>(
         &self,
         table: &CompositeTable,
         field: &F,
-        p: DVec3,
+        p: impl FnOnce() -> DVec3,
         v: f32,
     ) -> ([f32; 4], Option<DVec3>) {
         match table {
             CompositeTable::OneD(t) => (t.lookup(v), None),
             CompositeTable::TwoD(t) => {
-                let g = field.gradient(p);
+                let g = field.gradient(p());
                 (
                     t.lookup(v, (g.length() * self.voxel_length) as f32),
                     Some(g),
@@ -244,7 +244,7 @@ impl<F: Field> Consumer for Midpoint<'_, F> {
     fn take(&mut self, i: usize, t: f64, v: f32) -> ControlFlow<()> {
         let p = self.pass;
         let full = self.march.is_full_step(i + 1);
-        let pos = self.ray.index.at(t);
+        let pos = || self.ray.index.at(t);
         let (rgba, grad, a) = if full {
             // opacity already corrected for a whole step
             let (rgba, grad) = p.lookup(&p.full_step, self.field, pos, v);
