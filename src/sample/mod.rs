@@ -93,6 +93,11 @@ impl Normalize {
         }
     }
 
+    /// The window's lower end and `1 / (hi - lo)`.
+    pub fn lo_scale(&self) -> (f64, f64) {
+        (self.lo, self.scale)
+    }
+
     /// The normalised value of one voxel.
     #[inline(always)]
     pub fn apply(&self, v: f64) -> f32 {

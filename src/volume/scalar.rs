@@ -342,6 +342,13 @@ impl<'a, T: Voxel> Voxels<'a, T> {
         ]
     }
 
+    /// The address of voxel 0 (for vector loads; see [`Voxels::corners_unchecked`]
+    /// for the bounds the caller must keep).
+    #[inline(always)]
+    pub fn as_ptr(&self) -> *const u8 {
+        self.bytes.as_ptr()
+    }
+
     /// The same bytes read as another type of the same size (the raw bits of
     /// signed 8- and 16-bit voxels as unsigned ones, for tables indexed by bits).
     pub fn reinterpret<U: Voxel>(self) -> Voxels<'a, U> {
