@@ -128,6 +128,19 @@ fn missing_and_conflicting_sources() {
     assert_has(&err, &["needs `path`", "or `synthetic`"]);
     let err = reject("[volume]\npath = \"a.nrrd\"\nsynthetic = \"ball\"\n", &[]);
     assert_has(&err, &["either `path` or `synthetic`"]);
+    // synthetic fields come as float32, uint8 or uint16; the raw-file keys stay refused
+    let err = reject(
+        "[volume]\nsynthetic = \"blobs\"\ntype = \"int8\"\nendian = \"big\"\n",
+        &[],
+    );
+    assert_has(
+        &err,
+        &[
+            "type = \"int8\" is not known",
+            "`float32`, `uint8`, `uint16`",
+            "`endian`",
+        ],
+    );
     let err = reject("[volume]\npath = \"a.nrrd\"\nsizes = [2, 2, 2]\n", &[]);
     assert_has(&err, &["`sizes` is not used by NRRD files"]);
     let err = reject("[volume]\npath = \"a.dat\"\n", &[]);
