@@ -128,7 +128,9 @@ fn integrate(b: Bencher, integrand: impl Integrand, skip: bool) {
     let s = Setup::new();
     let f = s.field();
     let rays = s.rays(64);
-    let grid = MacroGrid::build([N; 3], Support::Linear, |r, w, o| f.grid.row_ranges(r, w, o));
+    let grid = MacroGrid::build([N; 3], Support::Linear, |r, w, o| {
+        f.grid.row_ranges(r, w, o)
+    });
     let nominal: usize = rays
         .iter()
         .map(|r| March::new(r.t_enter, r.t_exit, 0.5).len())
