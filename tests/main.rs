@@ -12,5 +12,6 @@ mod geometry;
 mod hard_cases;
 mod mapping;
 mod nrrd;
+mod output_folder;
 mod skipping;
 mod stereo;

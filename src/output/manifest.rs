@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
-use super::write::write_atomic;
+use super::write::{Folder, Kind};
 use crate::error::Error;
 use crate::render::View;
 use crate::scene::{
@@ -160,24 +160,79 @@ pub fn record_path(out: &Path, pass: &str, frame: usize) -> PathBuf {
     out.join(RECORDS).join(format!("{pass}_{frame:04}.json"))
 }
 
-/// Writes a record atomically (the records folder must exist).
+/// Largest record or manifest volcast reads back (a planted giant is an error, not
+/// an allocation).
+const MAX_JSON: u64 = 64 << 20;
+
+/// The output folder `out` (followed as given).
+pub(crate) fn out_folder(out: &Path) -> Result<Folder, Error> {
+    Folder::open(out).map_err(|source| Error::Output {
+        path: out.to_path_buf(),
+        source,
+    })
+}
+
+/// The records folder of `out`, created if missing (never through a link).
+pub(crate) fn records_folder(out: &Path) -> Result<Folder, Error> {
+    out_folder(out)?
+        .subfolder(RECORDS)
+        .map_err(|source| Error::Output {
+            path: out.join(RECORDS),
+            source,
+        })
+}
+
+/// The records folder of `out` if it exists (never through a link).
+fn existing_records(out: &Path) -> Result<Option<Folder>, Error> {
+    let folder = match Folder::open(out) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => {
+            return Err(Error::Output {
+                path: out.to_path_buf(),
+                source,
+            })
+        }
+    };
+    match folder.open_subfolder(RECORDS) {
+        Ok(f) => Ok(Some(f)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(source) => Err(Error::Output {
+            path: out.join(RECORDS),
+            source,
+        }),
+    }
+}
+
+/// The file name of the record of (`pass`, `frame`).
+fn record_name(pass: &str, frame: usize) -> String {
+    format!("{pass}_{frame:04}.json")
+}
+
+/// Writes a record atomically into `out`'s records folder (created if missing).
 pub fn write_record(out: &Path, record: &FrameRecord) -> Result<(), Error> {
     let path = record_path(out, &record.pass, record.frame);
     let text = serde_json::to_vec_pretty(record).map_err(|e| Error::Manifest {
         path: path.clone(),
         message: e.to_string(),
     })?;
-    write_atomic(&path, &text).map_err(|source| Error::Output { path, source })
+    records_folder(out)?
+        .write_atomic(&record_name(&record.pass, record.frame), &text)
+        .map_err(|source| Error::Output { path, source })
 }
 
 /// Reads the record of (`pass`, `frame`): `None` if there is none. A file that is
-/// not a record is an error that says what was expected.
+/// not a record (or a link, or not a regular file) is an error that says what was
+/// expected.
 pub fn read_record(out: &Path, pass: &str, frame: usize) -> Result<Option<FrameRecord>, Error> {
     let path = record_path(out, pass, frame);
-    let bytes = match std::fs::read(&path) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(source) => return Err(Error::Output { path, source }),
+    let Some(folder) = existing_records(out)? else {
+        return Ok(None);
+    };
+    let bytes = match folder.read_regular(&record_name(pass, frame), MAX_JSON) {
+        Ok(Some(b)) => b,
+        Ok(None) => return Ok(None),
+        Err(source) => return Err(Error::Read { path, source }),
     };
     match serde_json::from_slice::<FrameRecord>(&bytes) {
         Ok(r) if r.pass == pass && r.frame == frame => Ok(Some(r)),
@@ -200,10 +255,16 @@ pub fn read_record(out: &Path, pass: &str, frame: usize) -> Result<Option<FrameR
 /// Whether `record` shows a complete (pass, frame) of the scene hashed `digest`:
 /// the same hash, and every file present with its recorded size.
 pub fn is_complete(out: &Path, record: &FrameRecord, digest: &str) -> bool {
+    let Ok(folder) = Folder::open(out) else {
+        return false;
+    };
     record.scene_hash == digest
         && !record.files.is_empty()
         && record.files.iter().all(|f| {
-            std::fs::metadata(out.join(&f.name)).is_ok_and(|m| m.is_file() && m.len() == f.bytes)
+            folder
+                .open_regular(&f.name)
+                .and_then(|file| file.metadata())
+                .is_ok_and(|m| m.len() == f.bytes)
         })
 }
 
@@ -529,13 +590,44 @@ pub fn write_manifest(out: &Path, head: &ManifestHead) -> Result<ManifestStatus,
             message: e.to_string(),
         })?;
         text.push(b'\n');
-        write_atomic(&path, &text).map_err(|source| Error::Output {
-            path: path.clone(),
-            source,
-        })?;
+        write_manifest_file(out, &text)?;
         previous = Some(keys);
     }
     Ok(collect(out, head)?.1)
+}
+
+/// Writes `manifest.json` atomically; a link there is an error, not replaced.
+fn write_manifest_file(out: &Path, text: &[u8]) -> Result<(), Error> {
+    let path = out.join(MANIFEST);
+    let folder = out_folder(out)?;
+    if folder.kind_of(MANIFEST) == Some(Kind::Link) {
+        return Err(Error::Output {
+            path: path.clone(),
+            source: std::io::Error::other(format!(
+                "{} is a symbolic link: volcast does not follow links inside its output folder (someone else may have planted it); remove it, or use another output folder",
+                path.display()
+            )),
+        });
+    }
+    folder
+        .write_atomic(MANIFEST, text)
+        .map_err(|source| Error::Output { path, source })
+}
+
+/// Reads `manifest.json` of `out` as JSON: `None` when there is none or it is not
+/// JSON; a link or a special file there is an error.
+pub fn read_manifest(out: &Path) -> Result<Option<Value>, Error> {
+    let path = out.join(MANIFEST);
+    let folder = match Folder::open(out) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => return Err(Error::Output { path, source }),
+    };
+    match folder.read_regular(MANIFEST, MAX_JSON) {
+        Ok(Some(bytes)) => Ok(serde_json::from_slice(&bytes).ok()),
+        Ok(None) => Ok(None),
+        Err(source) => Err(Error::Read { path, source }),
+    }
 }
 
 /// The valid records of the current scene, in (pass, frame) order.

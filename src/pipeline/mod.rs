@@ -38,7 +38,6 @@ use crate::output::display::{to_display, DisplayKind, Window};
 use crate::output::manifest::{
     self, FileRecord, FrameRecord, ManifestHead, ManifestStatus, ViewRecord,
 };
-use crate::output::write::remove_stale_temporaries;
 use crate::output::{encode, frame_path, stereo, write_atomic, Eye};
 use crate::plan::{Plan, RunOptions};
 use crate::render::{Film, ImageKind, RenderView, Resources, View};

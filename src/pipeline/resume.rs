@@ -41,12 +41,14 @@ pub(super) fn jobs(
         .collect()
 }
 
+/// Creates the output folder (following its path as given) and its records folder
+/// (never through a link).
 pub(super) fn create_folders(out: &Path) -> Result<(), Error> {
-    let records = out.join(manifest::RECORDS);
-    std::fs::create_dir_all(&records).map_err(|source| Error::Output {
-        path: records,
+    std::fs::create_dir_all(out).map_err(|source| Error::Output {
+        path: out.to_path_buf(),
         source,
-    })
+    })?;
+    manifest::records_folder(out).map(drop)
 }
 
 /// The end of every run: remove stale temporaries, merge the manifest, and
@@ -61,17 +63,17 @@ pub(super) fn finish(
 ) -> Result<(), Error> {
     let out = &plan.out;
     // what the previous manifest says about the animations, before it is replaced
-    let previous = std::fs::read(out.join(manifest::MANIFEST))
-        .ok()
-        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
+    let previous = manifest::read_manifest(out)?
         .and_then(|v| v.get("animation").and_then(|a| a.get("settings")).cloned());
     create_folders(out)?;
     let mut removed = 0;
-    for dir in [out.clone(), out.join(manifest::RECORDS)] {
-        removed += remove_stale_temporaries(&dir).map_err(|source| Error::Output {
-            path: dir.clone(),
-            source,
-        })?;
+    for (dir, folder) in [
+        (out.clone(), manifest::out_folder(out)?),
+        (out.join(manifest::RECORDS), manifest::records_folder(out)?),
+    ] {
+        removed += folder
+            .remove_stale_temporaries()
+            .map_err(|source| Error::Output { path: dir, source })?;
     }
     if removed > 0 {
         summary.notes.push(format!(
