@@ -14,4 +14,5 @@ mod mapping;
 mod nrrd;
 mod output_folder;
 mod skipping;
+mod special_files;
 mod stereo;

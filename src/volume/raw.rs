@@ -4,7 +4,6 @@
 //! ([`super::mapped`]); the other byte order is read, with the decoder shared with the
 //! NRRD raw encoding.
 
-use std::fs::File;
 use std::io::{BufReader, Seek, SeekFrom};
 use std::path::PathBuf;
 
@@ -83,7 +82,8 @@ impl RawSpec {
             path: self.path.clone(),
             source,
         };
-        let mut r = BufReader::new(File::open(&self.path).map_err(io_err)?);
+        let (file, _) = mapped::open_regular(&self.path, "volume data")?;
+        let mut r = BufReader::new(file);
         r.seek(SeekFrom::Start(start)).map_err(io_err)?;
         let data = read_elements(&mut r, self.scalar_type, count, self.little_endian).map_err(
             |e| match e {
