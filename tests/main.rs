@@ -8,6 +8,7 @@ mod bad_input;
 mod batch;
 mod cli;
 mod determinism;
+mod exit_codes;
 mod geometry;
 mod hard_cases;
 mod mapping;

@@ -141,13 +141,17 @@ fn parse_frames(s: &str) -> Result<Range<usize>, String> {
             .parse::<usize>()
             .map_err(|_| format!("expected a frame number, got `{t}` (use A..B, A..=B or N)"))
     };
+    let after = |n: usize| {
+        n.checked_add(1)
+            .ok_or_else(|| format!("frame {n} is too large to be a frame number"))
+    };
     let r = if let Some((a, b)) = s.split_once("..=") {
-        num(a)?..num(b)?.saturating_add(1)
+        num(a)?..after(num(b)?)?
     } else if let Some((a, b)) = s.split_once("..") {
         num(a)?..num(b)?
     } else {
         let n = num(s)?;
-        n..n.saturating_add(1)
+        n..after(n)?
     };
     if r.start >= r.end {
         return Err(format!("`{s}` is an empty range of frames"));
@@ -203,6 +207,9 @@ mod tests {
         assert_eq!(parse_frames("7"), Ok(7..8));
         assert!(parse_frames("5..2").is_err());
         assert!(parse_frames("a..b").is_err());
+        let e = parse_frames("18446744073709551615").unwrap_err();
+        assert!(e.contains("too large") && !e.contains("empty"), "{e}");
+        assert!(parse_frames("0..=18446744073709551615").is_err());
     }
 
     #[test]

@@ -24,18 +24,20 @@ pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
             .check(&header.sizes, header.scalar_type.size())
             .with_context(context)?;
     }
-    println!("{}", plan.describe(&scene, &header));
+    let mut text = plan.describe(&scene, &header);
+    text.push('\n');
     if opts.resume {
         let done =
             volcast::pipeline::completed_images(&scene, &header, &plan).with_context(context)?;
-        println!(
-            "resume   {done} of {} images of these frames are complete and will be skipped",
+        text += &format!(
+            "resume   {done} of {} images of these frames are complete and will be skipped\n",
             plan.frame_list.len() * scene.passes.len()
         );
     }
     for w in &scene.warnings {
-        println!("warning  {w}");
+        text += &format!("warning  {w}\n");
     }
-    println!("ok");
+    text += "ok\n";
+    super::print(&text).context("printing the plan")?;
     Ok(ExitCode::SUCCESS)
 }

@@ -10,6 +10,7 @@ use volcast::volume::human_bytes;
 use volcast::batch::Shard;
 
 use super::args::{RenderArgs, SceneArgs, ShardArg};
+use super::say;
 
 /// The scene, options and limits common to `render` and `check`.
 pub(super) fn prepare(
@@ -78,7 +79,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     let (scene, opts, limits) = prepare(&a.scene)?;
     if !a.quiet {
         for w in &scene.warnings {
-            eprintln!("volcast: warning: {w}");
+            say!("volcast: warning: {w}");
         }
     }
     let bar = if a.quiet {
@@ -134,7 +135,7 @@ fn report(summary: &pipeline::Summary) {
     } else {
         String::new()
     };
-    eprintln!(
+    say!(
         "volcast: {} files ({} views rendered{skipped}, {}) in {:.2} s, {:.1} M samples/s{skipping} -> {folder}",
         summary.files.len(),
         summary.views,
@@ -144,7 +145,7 @@ fn report(summary: &pipeline::Summary) {
     );
     if let Some(m) = &summary.manifest {
         if m.complete() {
-            eprintln!(
+            say!(
                 "volcast: manifest {}: all {} images complete",
                 m.path.display(),
                 m.total
@@ -155,10 +156,10 @@ fn report(summary: &pipeline::Summary) {
                 } else {
                     ""
                 };
-                eprintln!("volcast: to make a video: {cmd}{more}");
+                say!("volcast: to make a video: {cmd}{more}");
             }
         } else {
-            eprintln!(
+            say!(
                 "volcast: manifest {}: {} of {} images done; the rest come from other shards or runs (animations are assembled once every frame exists: rerun with --resume to finish)",
                 m.path.display(),
                 m.done,
@@ -167,7 +168,7 @@ fn report(summary: &pipeline::Summary) {
         }
     }
     for a in &summary.animations {
-        eprintln!(
+        say!(
             "volcast: animation {} ({} frames at {} fps)",
             a.path.display(),
             a.frames,
@@ -175,6 +176,6 @@ fn report(summary: &pipeline::Summary) {
         );
     }
     for n in &summary.notes {
-        eprintln!("volcast: note: {n}");
+        say!("volcast: note: {n}");
     }
 }
