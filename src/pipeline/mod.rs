@@ -92,8 +92,24 @@ pub struct Summary {
 }
 
 /// Renders `scene` and writes its images, their manifest records, the merged
-/// manifest and, once the sequence is complete, its animations.
+/// manifest and, once the sequence is complete, its animations. A run that fails
+/// removes the folders it created if they are still empty (no stray folder).
 pub fn render(
+    scene: &Scene,
+    opts: &RunOptions,
+    limits: &Limits,
+    progress: &dyn Progress,
+) -> Result<Summary, Error> {
+    let out = opts.out.clone().unwrap_or_else(|| scene.image.out.clone());
+    let created = resume::missing_folders(&out);
+    let result = render_run(scene, opts, limits, progress);
+    if result.is_err() {
+        resume::remove_empty_folders(&created);
+    }
+    result
+}
+
+fn render_run(
     scene: &Scene,
     opts: &RunOptions,
     limits: &Limits,

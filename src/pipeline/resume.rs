@@ -51,6 +51,34 @@ pub(super) fn create_folders(out: &Path) -> Result<(), Error> {
     manifest::records_folder(out).map(drop)
 }
 
+/// The folders from `out` up that do not exist yet (innermost first), with the
+/// records folder: what a run may create.
+pub(super) fn missing_folders(out: &Path) -> Vec<PathBuf> {
+    let mut missing = Vec::new();
+    let mut p = Some(out);
+    while let Some(dir) = p.filter(|d| !d.as_os_str().is_empty()) {
+        if std::fs::symlink_metadata(dir).is_ok() {
+            break;
+        }
+        missing.push(dir.to_path_buf());
+        p = dir.parent();
+    }
+    if !missing.is_empty() {
+        missing.insert(0, out.join(manifest::RECORDS));
+    }
+    missing
+}
+
+/// Removes those of `folders` (innermost first) that are empty; stops at the first
+/// that is not (a run that failed after writing something keeps it).
+pub(super) fn remove_empty_folders(folders: &[PathBuf]) {
+    for dir in folders {
+        if std::fs::remove_dir(dir).is_err() && dir.exists() {
+            break;
+        }
+    }
+}
+
 /// The end of every run: remove stale temporaries, merge the manifest, and
 /// assemble the animations when the sequence is complete and they are missing,
 /// out of date, or this run wrote frames.
