@@ -12,6 +12,7 @@ mod exit_codes;
 mod geometry;
 mod hard_cases;
 mod mapping;
+mod memory;
 mod nrrd;
 mod output_folder;
 mod skipping;

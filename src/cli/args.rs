@@ -66,8 +66,10 @@ pub struct SceneArgs {
     /// Worker threads (default: one per core). Output is identical for any value.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
-    /// Largest voxel buffer to allocate, e.g. `8G`, `512M` (default: 16G or 3/4 of RAM).
-    /// Memory-mapped volumes (raw data in native byte order) do not count.
+    /// Most memory the run may use, e.g. `8G`, `512M` (default: 16G or 3/4 of RAM):
+    /// the voxels read, gradient volumes, coefficients, tables and images. The plan's
+    /// estimate is checked before anything is read. Memory-mapped volumes (raw data in
+    /// native byte order) do not count.
     #[arg(long, value_name = "BYTES", value_parser = parse_bytes)]
     pub max_memory: Option<u64>,
     /// Render the K-th of N interleaved parts of the frames (K from 0 to N-1): frames

@@ -12,18 +12,7 @@ pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
     let context = || format!("checking {}", scene.path.display());
     let header = scene.volume.source.header().with_context(context)?;
     let plan = Plan::build(&scene, &header, &opts)?;
-    // The memory limit is for voxels volcast reads into memory, not for mapped ones.
-    if !scene
-        .volume
-        .source
-        .storage()
-        .with_context(context)?
-        .is_mapped()
-    {
-        limits
-            .check(&header.sizes, header.scalar_type.size())
-            .with_context(context)?;
-    }
+    plan.check_memory(&scene, &limits)?;
     let mut text = plan.describe(&scene, &header);
     text.push('\n');
     if opts.resume {

@@ -118,6 +118,7 @@ fn render_run(
     let start = Instant::now();
     let header = scene.volume.source.header()?;
     let plan = Plan::build(scene, &header, opts)?;
+    plan.check_memory(scene, limits)?;
     let digest = manifest::scene_digest(scene, &header, plan.width, plan.height);
     let done = if opts.resume {
         completed(scene, &plan, &digest)?
@@ -215,6 +216,7 @@ pub fn render_films(
     let start = Instant::now();
     let header = scene.volume.source.header()?;
     let plan = Plan::build(scene, &header, opts)?;
+    plan.check_memory(scene, limits)?;
     let volume = scene.volume.source.load(limits)?;
     let norm = value_window(scene, &volume)?;
     let collected = std::sync::Mutex::new(Vec::new());

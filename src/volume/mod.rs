@@ -79,6 +79,15 @@ pub enum VolumeError {
         /// The limit in force.
         limit: u64,
     },
+    /// Memory the limit allowed could not be allocated (the machine has less free
+    /// than `--max-memory` assumed).
+    #[error("{}: out of memory: allocating {} for the voxels failed (the machine has less memory free than --max-memory allows: lower it, or free memory)", path.display(), human_bytes(*bytes))]
+    OutOfMemory {
+        /// The file being read.
+        path: PathBuf,
+        /// Bytes of the allocation that failed.
+        bytes: u64,
+    },
     /// Parameters of a raw or synthetic source that make no sense.
     #[error("{0}")]
     Invalid(String),

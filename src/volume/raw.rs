@@ -98,6 +98,10 @@ impl RawSpec {
                     path: self.path.clone(),
                     source,
                 },
+                ReadError::Memory { bytes } => VolumeError::OutOfMemory {
+                    path: self.path.clone(),
+                    bytes,
+                },
             },
         )?;
         Ok(Volume { header, data })

@@ -23,6 +23,11 @@ pub(crate) enum ReadError {
     },
     /// The stream failed (including corrupt compressed data and bad hex/ASCII text).
     Io(io::Error),
+    /// The buffer for the elements could not be allocated (`bytes` were asked for).
+    Memory {
+        /// Bytes of the allocation that failed.
+        bytes: u64,
+    },
 }
 
 /// A native-typed buffer filled from a byte stream, never allocating beyond `total`
@@ -37,8 +42,9 @@ fn empty(ty: ScalarType) -> VolumeData {
     VolumeData::from_bytes(ty, &[], true)
 }
 
-/// Appends the elements in `bytes`, growing geometrically but never past `total`.
-fn push<T: Voxel>(v: &mut Vec<T>, bytes: &[u8], le: bool, total: usize) {
+/// Appends the elements in `bytes`, growing geometrically but never past `total`;
+/// an allocation that fails is an error, not an abort.
+fn push<T: Voxel>(v: &mut Vec<T>, bytes: &[u8], le: bool, total: usize) -> Result<(), ReadError> {
     let size = std::mem::size_of::<T>();
     let n = bytes.len() / size;
     if v.capacity() - v.len() < n {
@@ -46,9 +52,13 @@ fn push<T: Voxel>(v: &mut Vec<T>, bytes: &[u8], le: bool, total: usize) {
             .max(MIN_CAPACITY)
             .min(total)
             .max(v.len() + n);
-        v.reserve_exact(want - v.len());
+        v.try_reserve_exact(want - v.len())
+            .map_err(|_| ReadError::Memory {
+                bytes: (want as u64).saturating_mul(size as u64),
+            })?;
     }
     v.extend(bytes.chunks_exact(size).map(|c| T::from_bytes(c, le)));
+    Ok(())
 }
 
 impl ElementSink {
@@ -61,7 +71,7 @@ impl ElementSink {
         }
     }
 
-    fn push(&mut self, bytes: &[u8]) {
+    fn push(&mut self, bytes: &[u8]) -> Result<(), ReadError> {
         let (le, total) = (self.little_endian, self.total);
         match &mut self.data {
             VolumeData::I8(v) => push(v, bytes, le, total),
@@ -99,7 +109,7 @@ impl ElementSink {
             };
             fill += n;
             let whole = fill / size * size;
-            self.push(&buf[..whole]);
+            self.push(&buf[..whole])?;
             buf.copy_within(whole..fill, 0);
             fill -= whole;
             remaining -= whole;

@@ -522,6 +522,10 @@ impl Piece<'_> {
                 self.bytes()
             )),
             ReadError::Io(e) => self.io_error(e),
+            ReadError::Memory { bytes } => VolumeError::OutOfMemory {
+                path: self.path.to_path_buf(),
+                bytes,
+            },
         })
     }
 
