@@ -342,7 +342,7 @@ fn the_manifest_reproduces_the_run() {
     let dir = tmp.path();
     render(dir, "first", &["--quiet"]);
     let m = manifest(&dir.join("first"));
-    assert_eq!(m["format"], "volcast-manifest-1");
+    assert_eq!(m["format"], "volcast-manifest-2");
     assert_eq!(m["volcast_version"], env!("CARGO_PKG_VERSION"));
     assert_eq!(m["volume"]["sizes"], serde_json::json!([14, 14, 14]));
     assert_eq!(m["scene"]["resolved"]["stereo"]["method"], "toe-in");

@@ -15,6 +15,7 @@ mod mapping;
 mod memory;
 mod nrrd;
 mod output_folder;
+mod resume_trust;
 mod skipping;
 mod special_files;
 mod stereo;

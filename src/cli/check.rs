@@ -16,12 +16,17 @@ pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
     let mut text = plan.describe(&scene, &header);
     text.push('\n');
     if opts.resume {
-        let done =
-            volcast::pipeline::completed_images(&scene, &header, &plan).with_context(context)?;
-        text += &format!(
-            "resume   {done} of {} images of these frames are complete and will be skipped\n",
-            plan.frame_list.len() * scene.passes.len()
-        );
+        let total = plan.frame_list.len() * scene.passes.len();
+        text += &match volcast::pipeline::completed_images(&scene, &header, &plan)
+            .with_context(context)?
+        {
+            Some(done) => format!(
+                "resume   {done} of {total} images of these frames are complete and will be skipped\n"
+            ),
+            None => format!(
+                "resume   the volume's files are not those the output folder's manifest recorded (or it recorded none): render --resume hashes the voxels to tell which of the {total} images are still valid\n"
+            ),
+        };
     }
     for w in &scene.warnings {
         text += &format!("warning  {w}\n");

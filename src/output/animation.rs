@@ -95,6 +95,9 @@ pub struct Written {
     pub frames: usize,
     /// The frame rate it plays at (GIF: after rounding the delay).
     pub fps: f64,
+    /// SHA-256 of the frames' hashes it was made from, when known (recorded in the
+    /// manifest to tell whether it is still up to date).
+    pub frames_sha256: Option<String>,
 }
 
 /// Writes every animation of `scene` into `out` from the frame files there.
@@ -115,6 +118,7 @@ pub fn assemble(out: &Path, scene: &Scene, anim: &Animation) -> Result<Vec<Writt
                 format,
                 frames: frames.len(),
                 fps,
+                frames_sha256: None,
             });
         }
     }

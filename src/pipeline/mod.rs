@@ -33,7 +33,7 @@ use rayon::prelude::*;
 use serde_json::json;
 
 use crate::error::Error;
-use crate::output::animation::{self, Sequence};
+use crate::output::animation;
 use crate::output::display::{to_display, DisplayKind, Window};
 use crate::output::manifest::{
     self, FileRecord, FrameRecord, ManifestHead, ManifestStatus, ViewRecord,
@@ -44,7 +44,7 @@ use crate::render::{Film, ImageKind, RenderView, Resources, View};
 use crate::sample::Normalize;
 use crate::scene::{AnaglyphColors, Format, Layout, Scene};
 use crate::views::{frames_per_batch, ViewKey};
-use crate::volume::{Limits, Stats, Volume, VolumeHeader};
+use crate::volume::{Limits, Stats, Volume, VolumeHeader, VolumeIdentity};
 
 /// Reports progress in units of finished (pass, frame) images.
 pub trait Progress: Sync {
@@ -119,25 +119,69 @@ fn render_run(
     let header = scene.volume.source.header()?;
     let plan = Plan::build(scene, &header, opts)?;
     plan.check_memory(scene, limits)?;
-    let digest = manifest::scene_digest(scene, &header, plan.width, plan.height);
-    let done = if opts.resume {
-        completed(scene, &plan, &digest)?
-    } else {
-        HashSet::new()
+    let mut summary = Summary::default();
+    let layout = manifest::scene_digest(scene, &header, plan.width, plan.height);
+    let previous = manifest::read_manifest(&plan.out)?;
+    if let Some(f) = previous.as_ref().and_then(manifest::manifest_format) {
+        if f != manifest::MANIFEST_FORMAT && opts.resume {
+            summary.notes.push(format!(
+                "{} was written by an older volcast ({f}) whose records do not cover the voxel data: its images are rendered again",
+                plan.out.join(manifest::MANIFEST).display()
+            ));
+        }
+    }
+    // What the voxels are: known from the manifest when the volume's files did not
+    // change, else hashed while they are read. Images count as done only for the
+    // same voxels.
+    let done_for = |digest: &str| -> Result<HashSet<(usize, usize)>, Error> {
+        if opts.resume {
+            completed(scene, &plan, digest)
+        } else {
+            Ok(HashSet::new())
+        }
+    };
+    let mut volume = None;
+    let (identity, digest, done) = match resume::trusted_identity(scene, previous.as_ref())? {
+        Some(recorded) => {
+            let digest = manifest::data_digest(&layout, recorded.data_xxh3.as_deref());
+            let done = done_for(&digest)?;
+            if jobs(scene, &plan, &done).is_empty() {
+                (recorded, digest, done)
+            } else {
+                let (v, now) = scene.volume.source.load_identified(limits)?;
+                volume = Some(v);
+                if now.data_xxh3 == recorded.data_xxh3 {
+                    (now, digest, done)
+                } else {
+                    let digest = manifest::data_digest(&layout, now.data_xxh3.as_deref());
+                    let done = done_for(&digest)?;
+                    (now, digest, done)
+                }
+            }
+        }
+        None => {
+            let (v, now) = scene.volume.source.load_identified(limits)?;
+            volume = Some(v);
+            let digest = manifest::data_digest(&layout, now.data_xxh3.as_deref());
+            let done = done_for(&digest)?;
+            (now, digest, done)
+        }
     };
     let jobs = jobs(scene, &plan, &done);
-    let mut summary = Summary {
-        skipped: done.len(),
-        ..Summary::default()
-    };
+    summary.skipped = done.len();
     if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
         summary.notes.push(format!(
             "shard {shard} has no frames of {}..{}: nothing to render",
             plan.frames.start, plan.frames.end
         ));
     }
-    if !jobs.is_empty() {
-        let volume = scene.volume.source.load(limits)?;
+    if jobs.is_empty() {
+        drop(volume.take());
+    } else {
+        let volume = match volume.take() {
+            Some(v) => v,
+            None => scene.volume.source.load(limits)?,
+        };
         let norm = value_window(scene, &volume)?;
         let shard = plan.shard.map(|s| s.to_string());
         let prepare = || create_folders(&plan.out);
@@ -180,10 +224,11 @@ fn render_run(
         let s = render_passes(scene, &plan, &volume, norm, &jobs, &emit)?;
         summary = Summary {
             skipped: summary.skipped,
+            notes: std::mem::take(&mut summary.notes),
             ..s
         };
     }
-    finish(scene, &plan, &header, &digest, &mut summary)?;
+    finish(scene, &plan, &header, &identity, &digest, &mut summary)?;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
 }

@@ -207,7 +207,9 @@ mod tests {
         assert!(shown.starts_with("s.toml:2:6: bad"), "{shown}");
         assert!(shown.contains("2 | bé = 2"), "{shown}");
         // spans inside a character or past the end never panic
-        for span in [7..8, 8..7, 0..1000, 1000..2000] {
+        #[allow(clippy::reversed_empty_ranges)]
+        let spans = [7..8, 8..7, 0..1000, 1000..2000];
+        for span in spans {
             let e = SceneError {
                 diagnostics: vec![Diagnostic {
                     span: Some(span),

@@ -36,6 +36,8 @@ pub(crate) struct ElementSink {
     data: VolumeData,
     total: usize,
     little_endian: bool,
+    /// XXH3-128 of the element bytes as stored, fed as they arrive (when asked for).
+    hasher: Option<Box<xxhash_rust::xxh3::Xxh3>>,
 }
 
 fn empty(ty: ScalarType) -> VolumeData {
@@ -68,10 +70,26 @@ impl ElementSink {
             data: empty(ty),
             total,
             little_endian,
+            hasher: None,
         }
     }
 
+    /// Also hashes the element bytes as they arrive (XXH3-128 of the data as stored,
+    /// in file order), at no extra pass over the data.
+    pub fn hashing(mut self) -> ElementSink {
+        self.hasher = Some(Box::default());
+        self
+    }
+
+    /// The hash of the bytes read so far, when hashing.
+    pub fn hash(&self) -> Option<u128> {
+        self.hasher.as_ref().map(|h| h.digest128())
+    }
+
     fn push(&mut self, bytes: &[u8]) -> Result<(), ReadError> {
+        if let Some(h) = &mut self.hasher {
+            h.update(bytes);
+        }
         let (le, total) = (self.little_endian, self.total);
         match &mut self.data {
             VolumeData::I8(v) => push(v, bytes, le, total),
@@ -124,7 +142,8 @@ impl ElementSink {
     }
 }
 
-/// Reads exactly `count` elements of `ty` from `r` (the shared raw decoder).
+/// Reads exactly `count` elements of `ty` from `r`.
+#[cfg(test)]
 pub(crate) fn read_elements(
     r: &mut impl Read,
     ty: ScalarType,

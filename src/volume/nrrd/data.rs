@@ -240,13 +240,15 @@ pub(super) fn read_data(
     h: &NrrdHeader,
     data_offset: Option<u64>,
     limits: &Limits,
-) -> Result<VolumeData, VolumeError> {
+    hash: bool,
+) -> Result<(VolumeData, Option<u128>), VolumeError> {
     if storage_kind(h).is_ok() {
         let bytes = data_bytes(header_path, h)?;
         let (path, start) = data_file(header_path, h, data_offset, 0);
         let (file, offset) = single_piece(header_path, h, &path).locate_raw(start)?;
         let m = mapped::map(&file, &path, h.scalar_type, offset, bytes)?;
-        return Ok(VolumeData::Mapped(m));
+        let digest = hash.then(|| xxhash_rust::xxh3::xxh3_128(m.bytes()));
+        return Ok((VolumeData::Mapped(m), digest));
     }
     let elem = h.scalar_type.size();
     let (count, _) = limits
@@ -259,6 +261,9 @@ pub(super) fn read_data(
     let per_file = count / files;
     let le = h.endian == Endian::Little || !h.encoding.endian_matters();
     let mut sink = ElementSink::new(h.scalar_type, count, le);
+    if hash {
+        sink = sink.hashing();
+    }
     for index in 0..files {
         let (path, start) = data_file(header_path, h, data_offset, index);
         let piece = Piece {
@@ -271,7 +276,23 @@ pub(super) fn read_data(
         };
         piece.read(start, &mut sink)?;
     }
-    Ok(sink.finish())
+    let digest = sink.hash();
+    Ok((sink.finish(), digest))
+}
+
+/// Every file the data of a checked header is read from (the header's own file for
+/// attached data), in order.
+pub(super) fn data_files(
+    header_path: &Path,
+    h: &NrrdHeader,
+    data_offset: Option<u64>,
+) -> Vec<PathBuf> {
+    let files = usize::try_from(file_count(&h.data_file))
+        .unwrap_or(usize::MAX)
+        .max(1);
+    (0..files)
+        .map(|i| data_file(header_path, h, data_offset, i).0)
+        .collect()
 }
 
 /// One data file's share of the elements.
