@@ -109,12 +109,7 @@ impl Synthetic {
         let header = self.header();
         let g = header.geometry;
         let [nx, ny, _] = self.sizes;
-        let mut v = Vec::new();
-        v.try_reserve_exact(count)
-            .map_err(|_| VolumeError::OutOfMemory {
-                path: format!("synthetic {}", self.field.name()).into(),
-                bytes: count as u64 * 4,
-            })?;
+        let mut v = Vec::with_capacity(count);
         for idx in 0..count {
             let i = idx % nx;
             let j = (idx / nx) % ny;
