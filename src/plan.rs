@@ -51,6 +51,9 @@ pub struct RunOptions {
     /// March every sample of every ray instead of skipping empty space (the same
     /// images, slower; for comparisons).
     pub no_skip: bool,
+    /// Render nothing: merge the manifest and assemble the animations from the images
+    /// that exist, and report what is missing (`--finish-only`).
+    pub finish_only: bool,
 }
 
 /// The plan of a run.

@@ -73,9 +73,10 @@ pub struct SceneArgs {
     #[arg(long, value_name = "BYTES", value_parser = parse_bytes)]
     pub max_memory: Option<u64>,
     /// Render the K-th of N interleaved parts of the frames (K from 0 to N-1): frames
-    /// K, K+N, K+2N, ... of the selected range. `auto` takes K and N from a Slurm job
-    /// array (SLURM_ARRAY_TASK_ID, _COUNT and _MIN).
-    #[arg(long, value_name = "K/N|auto", value_parser = parse_shard)]
+    /// K, K+N, K+2N, ... of the selected range. `auto/N` (for Slurm job arrays) takes
+    /// K = SLURM_ARRAY_TASK_ID, so a resubmitted task renders its own shard of N;
+    /// `auto` takes K and N from the array (SLURM_ARRAY_TASK_ID, _COUNT and _MIN).
+    #[arg(long, value_name = "K/N|auto/N|auto", value_parser = parse_shard)]
     pub shard: Option<ShardArg>,
     /// Skip the images that the output folder's manifest shows are complete and
     /// belong to this very scene (same scene, volume header, size and version).
@@ -96,6 +97,8 @@ pub struct SceneArgs {
 pub enum ShardArg {
     /// From the Slurm environment.
     Auto,
+    /// The task ID from the Slurm environment, of this many shards.
+    AutoOf(usize),
     /// Given on the command line.
     Fixed(volcast::batch::Shard),
 }
@@ -103,6 +106,13 @@ pub enum ShardArg {
 fn parse_shard(s: &str) -> Result<ShardArg, String> {
     if s.trim() == "auto" {
         Ok(ShardArg::Auto)
+    } else if let Some(n) = s.trim().strip_prefix("auto/") {
+        match n.trim().parse::<usize>() {
+            Ok(n) if n >= 1 => Ok(ShardArg::AutoOf(n)),
+            _ => Err(format!(
+                "--shard {s}: expected auto/N with N the number of shards, a whole number of at least 1 (e.g. auto/8)"
+            )),
+        }
     } else {
         s.parse()
             .map(ShardArg::Fixed)
@@ -114,6 +124,11 @@ fn parse_shard(s: &str) -> Result<ShardArg, String> {
 pub struct RenderArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
+    /// Render nothing: merge the manifest and assemble the animations from the images
+    /// that exist (and are intact), and report what is missing (exit status 1 if
+    /// anything is). For the safety-net job after a Slurm array.
+    #[arg(long, conflicts_with_all = ["shard", "frames"])]
+    pub finish_only: bool,
     /// No progress bar and no summary (errors are still printed).
     #[arg(long, short)]
     pub quiet: bool,
@@ -226,6 +241,9 @@ mod tests {
         );
         assert!(parse_shard("3/3").unwrap_err().contains("below N"));
         assert!(parse_shard("x").unwrap_err().contains("expected K/N"));
+        assert_eq!(parse_shard("auto/8"), Ok(ShardArg::AutoOf(8)));
+        assert!(parse_shard("auto/0").unwrap_err().contains("auto/N"));
+        assert!(parse_shard("auto/x").is_err());
     }
 
     #[test]

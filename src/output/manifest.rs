@@ -620,6 +620,11 @@ pub struct ManifestStatus {
     pub total: usize,
     /// Records that could not be read (named, with the reason).
     pub unreadable: Vec<String>,
+    /// The (pass, frame) images of the orbit that are missing (or damaged, or of
+    /// another scene), in pass and frame order.
+    pub missing: Vec<(String, usize)>,
+    /// The shard counts `N` named by the records present (`K/N`), in order.
+    pub shard_counts: Vec<usize>,
 }
 
 impl ManifestStatus {
@@ -765,16 +770,26 @@ fn collect(out: &Path, head: &ManifestHead) -> Result<(Vec<FrameRecord>, Manifes
             .collect()
     };
     let mut records = Vec::new();
-    for r in found {
+    for (r, &(pass, k)) in found.into_iter().zip(&keys) {
         match r {
             Ok(Some(r)) => {
                 status.done += 1;
                 records.push(r);
             }
-            Ok(None) => {}
-            Err(e) => status.unreadable.push(e.to_string()),
+            Ok(None) => status.missing.push((pass.to_string(), k)),
+            Err(e) => {
+                status.unreadable.push(e.to_string());
+                status.missing.push((pass.to_string(), k));
+            }
         }
     }
+    let mut counts: Vec<usize> = records
+        .iter()
+        .filter_map(|r| r.shard.as_deref()?.split_once('/')?.1.parse().ok())
+        .collect();
+    counts.sort_unstable();
+    counts.dedup();
+    status.shard_counts = counts;
     Ok((records, status))
 }
 

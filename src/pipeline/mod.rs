@@ -118,6 +118,15 @@ fn render_run(
     let start = Instant::now();
     let header = scene.volume.source.header()?;
     let plan = Plan::build(scene, &header, opts)?;
+    if opts.finish_only && !plan.out.is_dir() {
+        return Err(Error::Plan {
+            scene: scene.path.clone(),
+            message: format!(
+                "--finish-only: the output folder {} does not exist: nothing has been rendered there yet",
+                plan.out.display()
+            ),
+        });
+    }
     plan.check_memory(scene, limits)?;
     let mut summary = Summary::default();
     let layout = manifest::scene_digest(scene, &header, plan.width, plan.height);
@@ -134,7 +143,15 @@ fn render_run(
     // change, else hashed while they are read. Images count as done only for the
     // same voxels.
     let done_for = |digest: &str| -> Result<HashSet<(usize, usize)>, Error> {
-        if opts.resume {
+        if opts.finish_only {
+            // nothing is rendered: every image counts as done here; the manifest
+            // says which exist
+            Ok(plan
+                .frame_list
+                .iter()
+                .flat_map(|&k| (0..scene.passes.len()).map(move |p| (p, k)))
+                .collect())
+        } else if opts.resume {
             completed(scene, &plan, digest)
         } else {
             Ok(HashSet::new())
@@ -168,7 +185,7 @@ fn render_run(
         }
     };
     let jobs = jobs(scene, &plan, &done);
-    summary.skipped = done.len();
+    summary.skipped = if opts.finish_only { 0 } else { done.len() };
     if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
         summary.notes.push(format!(
             "shard {shard} has no frames of {}..{}: nothing to render",
