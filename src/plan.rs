@@ -54,6 +54,8 @@ pub struct RunOptions {
     /// Render nothing: merge the manifest and assemble the animations from the images
     /// that exist, and report what is missing (`--finish-only`).
     pub finish_only: bool,
+    /// The folder the volume's files and the output folder must lie in (`--confine`).
+    pub confine: Option<std::path::PathBuf>,
 }
 
 /// The plan of a run.

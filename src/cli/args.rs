@@ -78,6 +78,12 @@ pub struct SceneArgs {
     /// `auto` takes K and N from the array (SLURM_ARRAY_TASK_ID, _COUNT and _MIN).
     #[arg(long, value_name = "K/N|auto/N|auto", value_parser = parse_shard)]
     pub shard: Option<ShardArg>,
+    /// Only read volume files, and write output, under DIR (after resolving `..` and
+    /// links): the scene's volume path, every NRRD `data file` and the output folder.
+    /// Use it to render untrusted scenes or volumes (course submissions, a shared
+    /// service).
+    #[arg(long, value_name = "DIR")]
+    pub confine: Option<PathBuf>,
     /// Skip the images that the output folder's manifest shows are complete and
     /// belong to this very scene (same scene, volume header, size and version).
     #[arg(long)]

@@ -10,6 +10,7 @@ use super::args::CheckArgs;
 pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
     let (scene, opts, limits) = super::render::prepare(&a.scene)?;
     let context = || format!("checking {}", scene.path.display());
+    let _scope = volcast::pipeline::confine_run(&scene, &opts).with_context(context)?;
     let header = scene.volume.source.header().with_context(context)?;
     let plan = Plan::build(&scene, &header, &opts)?;
     plan.check_memory(&scene, &limits)?;

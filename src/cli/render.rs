@@ -36,6 +36,7 @@ pub(super) fn prepare(
         resume: a.resume,
         no_view_reuse: a.no_view_reuse,
         no_skip: a.no_skip,
+        confine: a.confine.clone(),
         ..Default::default()
     };
     let mut limits = volcast::volume::Limits::default();

@@ -44,7 +44,7 @@ use crate::render::{Film, ImageKind, RenderView, Resources, View};
 use crate::sample::Normalize;
 use crate::scene::{AnaglyphColors, Format, Layout, Scene};
 use crate::views::{frames_per_batch, ViewKey};
-use crate::volume::{Limits, Stats, Volume, VolumeHeader, VolumeIdentity};
+use crate::volume::{confine, Limits, Stats, Volume, VolumeHeader, VolumeIdentity};
 
 /// Reports progress in units of finished (pass, frame) images.
 pub trait Progress: Sync {
@@ -116,6 +116,7 @@ fn render_run(
     progress: &dyn Progress,
 ) -> Result<Summary, Error> {
     let start = Instant::now();
+    let _scope = confine_run(scene, opts)?;
     let header = scene.volume.source.header()?;
     let plan = Plan::build(scene, &header, opts)?;
     if opts.finish_only && !plan.out.is_dir() {
@@ -250,6 +251,19 @@ fn render_run(
     Ok(summary)
 }
 
+/// `--confine`: checks the volume's files and the output folder against the folder
+/// of `opts.confine` before anything is read or created, and returns the scope that
+/// checks every volume file again as it is opened (keep it alive while loading).
+pub fn confine_run(scene: &Scene, opts: &RunOptions) -> Result<Option<confine::Scope>, Error> {
+    let Some(dir) = &opts.confine else {
+        return Ok(None);
+    };
+    let root = confine::Root::new(dir)?;
+    confine::check_source(&scene.volume.source, &root)?;
+    confine::check_output(opts.out.as_deref().unwrap_or(&scene.image.out), &root)?;
+    Ok(Some(confine::Scope::enter(&root)))
+}
+
 /// One rendered view, kept in memory.
 #[derive(Clone, Debug)]
 pub struct RenderedView {
@@ -276,6 +290,7 @@ pub fn render_films(
     limits: &Limits,
 ) -> Result<(Vec<RenderedView>, Summary), Error> {
     let start = Instant::now();
+    let _scope = confine_run(scene, opts)?;
     let header = scene.volume.source.header()?;
     let plan = Plan::build(scene, &header, opts)?;
     plan.check_memory(scene, limits)?;

@@ -450,7 +450,7 @@ fn read_text(path: &Path) -> Result<String, SceneError> {
     use std::io::Read;
     let fail = |m: String| SceneError::whole_file(path, m);
     let cannot = |e: std::io::Error| fail(format!("cannot read the scene file: {e}"));
-    let file = crate::volume::mapped::open_for_mapping(path).map_err(cannot)?;
+    let file = crate::volume::mapped::open_nonblocking(path).map_err(cannot)?;
     let meta = file.metadata().map_err(cannot)?;
     if !meta.is_file() {
         return Err(fail(format!(

@@ -190,7 +190,7 @@ impl fmt::Debug for MappedVoxels {
 
 /// Opens `path` for reading without blocking (a FIFO would otherwise wait for a
 /// writer before its type could be checked).
-pub(crate) fn open_for_mapping(path: &Path) -> io::Result<File> {
+pub(crate) fn open_nonblocking(path: &Path) -> io::Result<File> {
     let mut options = std::fs::OpenOptions::new();
     options.read(true);
     #[cfg(unix)]
@@ -199,6 +199,14 @@ pub(crate) fn open_for_mapping(path: &Path) -> io::Result<File> {
         options.custom_flags(libc::O_NONBLOCK);
     }
     options.open(path)
+}
+
+/// Opens a volume file (header or data) for reading without blocking; inside a
+/// [`confine::Scope`](super::confine::Scope), the opened file must lie in its folder.
+pub(crate) fn open_for_mapping(path: &Path) -> io::Result<File> {
+    let file = open_nonblocking(path)?;
+    super::confine::check_opened(path, &file)?;
+    Ok(file)
 }
 
 /// Opens `path` for reading without blocking and checks, on the opened file, that it

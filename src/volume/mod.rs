@@ -10,6 +10,7 @@
 //! ([`mapped`]); [`VolumeSource::storage`] tells which before loading. Nothing in this
 //! module knows about cameras or render modes.
 
+pub mod confine;
 pub mod geometry;
 pub mod limits;
 pub mod mapped;
@@ -87,6 +88,18 @@ pub enum VolumeError {
         path: PathBuf,
         /// Bytes of the allocation that failed.
         bytes: u64,
+    },
+    /// A file outside the folder the run is confined to (`--confine`).
+    #[error("{}: {what} is outside {} (--confine): it resolves to {}", path.display(), root.display(), real.display())]
+    Outside {
+        /// The path as named (in the scene or a header).
+        path: PathBuf,
+        /// What it is ("the volume", "a data file named by x.nhdr", "the output folder").
+        what: String,
+        /// Where it resolves to.
+        real: PathBuf,
+        /// The folder the run is confined to.
+        root: PathBuf,
     },
     /// Parameters of a raw or synthetic source that make no sense.
     #[error("{0}")]
