@@ -10,6 +10,7 @@ mod cli;
 mod confine;
 mod determinism;
 mod exit_codes;
+mod fuzz;
 mod geometry;
 mod hard_cases;
 mod mapping;
