@@ -264,6 +264,20 @@ pub fn confine_run(scene: &Scene, opts: &RunOptions) -> Result<Option<confine::S
     Ok(Some(confine::Scope::enter(&root)))
 }
 
+/// What [`render_films`] checks before it loads the volume: `--confine` (the scope
+/// it returns keeps checking files as they are opened) and the plan's memory
+/// estimate against `limits`.
+fn preflight(
+    scene: &Scene,
+    opts: &RunOptions,
+    limits: &Limits,
+) -> Result<Option<confine::Scope>, Error> {
+    let scope = confine_run(scene, opts)?;
+    let header = scene.volume.source.header()?;
+    Plan::build(scene, &header, opts)?.check_memory(scene, limits)?;
+    Ok(scope)
+}
+
 /// One rendered view, kept in memory.
 #[derive(Clone, Debug)]
 pub struct RenderedView {
@@ -289,11 +303,10 @@ pub fn render_films(
     opts: &RunOptions,
     limits: &Limits,
 ) -> Result<(Vec<RenderedView>, Summary), Error> {
+    let _scope = preflight(scene, opts, limits)?;
     let start = Instant::now();
-    let _scope = confine_run(scene, opts)?;
     let header = scene.volume.source.header()?;
     let plan = Plan::build(scene, &header, opts)?;
-    plan.check_memory(scene, limits)?;
     let volume = scene.volume.source.load(limits)?;
     let norm = value_window(scene, &volume)?;
     let collected = std::sync::Mutex::new(Vec::new());
