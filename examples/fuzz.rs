@@ -7,6 +7,7 @@
 //! cargo build --release
 //! cargo run --release --example fuzz -- [--kind nrrd|scene|both] [--cases N] [--seed S]
 //!     [--jobs J] [--timeout SECONDS] [--memory BYTES] [--volcast PATH] [--out DIR]
+//!     [--dump CASE]
 //! ```
 //!
 //! Defaults: both kinds, 100000 cases each, seed 1, one job per core, 10 s, 1 GiB of
@@ -15,7 +16,8 @@
 //! volcast is killed by a signal (an abort, a crash), runs past the timeout, exits
 //! with a status other than 0 or 1 (101 is a panic, 2 a usage error), or reports an
 //! internal error or running out of memory. Case `i` of a kind and seed is always the
-//! same input, so a failure is reproduced from the three numbers.
+//! same input, so a failure is reproduced from the three numbers (`--dump CASE`
+//! writes that input to standard output).
 
 #[path = "../tests/fuzz/mutate.rs"]
 mod mutate;
@@ -29,6 +31,8 @@ use std::time::{Duration, Instant};
 use mutate::{case, corpus, Kind};
 
 struct Options {
+    /// Write case N of the first kind to standard output instead of running.
+    dump: Option<u64>,
     kinds: Vec<Kind>,
     cases: u64,
     seed: u64,
@@ -40,7 +44,7 @@ struct Options {
 }
 
 fn usage() -> String {
-    "usage: fuzz [--kind nrrd|scene|both] [--cases N] [--seed S] [--jobs J] [--timeout SECONDS] [--memory BYTES] [--volcast PATH] [--out DIR]".into()
+    "usage: fuzz [--kind nrrd|scene|both] [--cases N] [--seed S] [--jobs J] [--timeout SECONDS] [--memory BYTES] [--volcast PATH] [--out DIR] [--dump CASE]".into()
 }
 
 fn options() -> Result<Options, String> {
@@ -52,6 +56,7 @@ fn options() -> Result<Options, String> {
         .map(|d| d.join("volcast"))
         .unwrap_or_else(|| PathBuf::from("volcast"));
     let mut o = Options {
+        dump: None,
         kinds: vec![Kind::Nrrd, Kind::Scene],
         cases: 100_000,
         seed: 1,
@@ -87,11 +92,12 @@ fn options() -> Result<Options, String> {
             "--memory" => o.memory = num(value()?)?,
             "--volcast" => o.volcast = PathBuf::from(value()?),
             "--out" => o.out = PathBuf::from(value()?),
+            "--dump" => o.dump = Some(num(value()?)?),
             "-h" | "--help" => return Err(usage()),
             other => return Err(format!("unknown argument {other}\n{}", usage())),
         }
     }
-    if !o.volcast.is_file() {
+    if !o.volcast.is_file() && o.dump.is_none() {
         return Err(format!(
             "{} not found: run `cargo build --release` first, or pass --volcast PATH",
             o.volcast.display()
@@ -225,6 +231,7 @@ fn fuzz(o: &Options, kind: Kind) -> u64 {
                 if kind == Kind::Nrrd {
                     copy_fixtures(root, &dir).expect("the fixtures");
                 }
+                mutate::prepare_dir(&dir);
                 loop {
                     let i = next.fetch_add(1, Ordering::Relaxed);
                     if i >= o.cases {
@@ -281,6 +288,14 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if let Some(i) = o.dump {
+        use std::io::Write;
+        let kind = o.kinds[0];
+        let seeds = corpus(kind, Path::new(env!("CARGO_MANIFEST_DIR")));
+        let (_, bytes) = case(kind, &seeds, o.seed, i);
+        let _ = std::io::stdout().write_all(&bytes);
+        return ExitCode::SUCCESS;
+    }
     let failed: u64 = o.kinds.clone().into_iter().map(|k| fuzz(&o, k)).sum();
     if failed == 0 {
         ExitCode::SUCCESS

@@ -80,6 +80,7 @@ fn run(kind: Kind) {
     if kind == Kind::Nrrd {
         copy_fixtures(tmp.path());
     }
+    mutate::prepare_dir(tmp.path());
     let seed = seed();
     let start = Instant::now();
     let mut n = 0u64;
