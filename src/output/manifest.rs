@@ -275,30 +275,13 @@ pub fn is_complete(out: &Path, record: &FrameRecord, digest: &str) -> bool {
 }
 
 /// Whether `name` in `folder` is a regular file of `bytes` bytes whose SHA-256 is
-/// `sha256` (hex).
+/// `sha256` (hex). The size is compared first, so a file of another size is not read.
 pub(crate) fn file_matches(folder: &Folder, name: &str, bytes: u64, sha256: &str) -> bool {
-    use std::io::Read as _;
-    let Ok(mut file) = folder.open_regular(name) else {
-        return false;
-    };
-    if file.metadata().map(|m| m.len()).ok() != Some(bytes) {
-        return false;
-    }
-    let mut h = Sha256::new();
-    let mut buf = vec![0u8; 1 << 16];
-    let mut total = 0u64;
-    loop {
-        match file.read(&mut buf) {
-            Ok(0) => break,
-            Ok(n) => {
-                h.update(&buf[..n]);
-                total += n as u64;
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(_) => return false,
-        }
-    }
-    total == bytes && hex(&h.finalize()) == sha256
+    let same_size = folder
+        .open_regular(name)
+        .and_then(|f| f.metadata())
+        .is_ok_and(|m| m.len() == bytes);
+    same_size && hash_file(folder, name).is_ok_and(|(n, h)| n == bytes && h == sha256)
 }
 
 /// SHA-256 (hex) and size of the regular file `name` in `folder`.
