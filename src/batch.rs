@@ -56,6 +56,14 @@ pub enum ShardError {
         /// Its value.
         value: String,
     },
+    /// With `--shard auto/N`, the task ID is not a shard of `N`.
+    #[error("--shard auto/{count}: SLURM_ARRAY_TASK_ID = {id} is not a shard of {count}: with auto/{count} the task ID is the shard, so submit the array as --array=0-{last} (or any part of it, such as --array={example} to render shard {example} again)", last = count - 1, example = count.saturating_sub(1).min(3))]
+    TaskNotAShard {
+        /// The task ID.
+        id: i64,
+        /// N.
+        count: usize,
+    },
     /// The job array's task IDs are not consecutive.
     #[error("--shard auto: the job array must have consecutive task IDs (e.g. --array=0-7 or --array=1-8, optionally with %limit), so that task IDs map to shards 0..N-1; this one has {detail}")]
     NotConsecutive {
@@ -154,6 +162,29 @@ impl Shard {
         Shard::new(index as usize, count as usize)
     }
 
+    /// The shard of this task of a Slurm job array of `count` shards in all
+    /// (`--shard auto/N`): the index is `SLURM_ARRAY_TASK_ID` itself, whatever the
+    /// array's other tasks, so `sbatch --array=3` renders exactly shard 3 of `count`
+    /// again. `var` looks a variable up.
+    pub fn from_slurm_of(
+        count: usize,
+        var: impl Fn(&str) -> Option<String>,
+    ) -> Result<Shard, ShardError> {
+        const VAR: &str = "SLURM_ARRAY_TASK_ID";
+        let value = var(VAR).ok_or(ShardError::MissingVariable { var: VAR })?;
+        let id: i64 = value.trim().parse().map_err(|_| ShardError::BadVariable {
+            var: VAR,
+            value: value.clone(),
+        })?;
+        if count == 0 {
+            return Err(ShardError::NoShards { index: 0 });
+        }
+        match usize::try_from(id) {
+            Ok(index) if index < count => Shard::new(index, count),
+            _ => Err(ShardError::TaskNotAShard { id, count }),
+        }
+    }
+
     /// The frames of `range` in this shard: `start + index`, `start + index + count`, ...
     pub fn select(&self, range: Range<usize>) -> Vec<usize> {
         range
@@ -210,6 +241,37 @@ mod tests {
         assert!(ShardError::OutOfRange { index: 4, count: 4 }
             .to_string()
             .contains("0/4 to 3/4"));
+    }
+
+    #[test]
+    fn slurm_arrays_of_a_fixed_total() {
+        // a resubmitted task of an 8-shard job: --array=3 is shard 3 of 8, not 0 of 1
+        let s = Shard::from_slurm_of(
+            8,
+            env(&[
+                ("SLURM_ARRAY_TASK_ID", "3"),
+                ("SLURM_ARRAY_TASK_COUNT", "1"),
+                ("SLURM_ARRAY_TASK_MIN", "3"),
+                ("SLURM_ARRAY_TASK_MAX", "3"),
+            ]),
+        );
+        assert_eq!(s, Ok(Shard { index: 3, count: 8 }));
+        assert_eq!(
+            Shard::from_slurm_of(8, env(&[("SLURM_ARRAY_TASK_ID", "0")])),
+            Ok(Shard { index: 0, count: 8 })
+        );
+        let e = Shard::from_slurm_of(8, env(&[("SLURM_ARRAY_TASK_ID", "8")])).unwrap_err();
+        assert!(e.to_string().contains("--array=0-7"), "{e}");
+        assert!(matches!(
+            Shard::from_slurm_of(8, env(&[("SLURM_ARRAY_TASK_ID", "-1")])),
+            Err(ShardError::TaskNotAShard { .. })
+        ));
+        assert_eq!(
+            Shard::from_slurm_of(8, env(&[])),
+            Err(ShardError::MissingVariable {
+                var: "SLURM_ARRAY_TASK_ID"
+            })
+        );
     }
 
     #[test]

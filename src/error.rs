@@ -31,6 +31,15 @@ pub enum Error {
         /// What the OS said.
         source: std::io::Error,
     },
+    /// A file in an output folder could not be read back (a record, an image to
+    /// verify, the manifest).
+    #[error("reading {}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What the OS said, or what is wrong with it.
+        source: std::io::Error,
+    },
     /// A manifest record in an output folder is not what volcast writes.
     #[error("{}: {message}", path.display())]
     Manifest {

@@ -51,6 +51,11 @@ pub struct RunOptions {
     /// March every sample of every ray instead of skipping empty space (the same
     /// images, slower; for comparisons).
     pub no_skip: bool,
+    /// Render nothing: merge the manifest and assemble the animations from the images
+    /// that exist, and report what is missing (`--finish-only`).
+    pub finish_only: bool,
+    /// The folder the volume's files and the output folder must lie in (`--confine`).
+    pub confine: Option<std::path::PathBuf>,
 }
 
 /// The plan of a run.
@@ -95,6 +100,16 @@ pub struct Plan {
     pub transient_bytes: u64,
     /// Bytes of the films in flight (one per thread, at most).
     pub film_bytes: u64,
+    /// Bytes of the grey-window previews (every distinct view of the orbit at the
+    /// preview size, kept until the window is known).
+    pub preview_bytes: u64,
+    /// Bytes of images being laid out and encoded (one per thread).
+    pub output_bytes: u64,
+    /// Bytes at the peak of assembling the animations (after rendering).
+    pub animation_bytes: u64,
+    /// The estimate, item by item: what, and bytes (what `--max-memory` is checked
+    /// against; see [`Plan::check_memory`]).
+    pub memory: Vec<(String, u64)>,
     /// Worker threads assumed for the estimate.
     pub threads: usize,
     /// Rough number of field samples (ray length x pixels / step, upper bound).
@@ -212,7 +227,15 @@ impl Plan {
             .saturating_add(grids.len() as u64 * MacroGrid::bytes(header.sizes))
             .saturating_add(table_bytes)
             .saturating_add(lut_bytes);
-        let transient_bytes = if cubic { voxels.saturating_mul(8) } else { 0 };
+        // The prefilter works in double precision on a copy of the volume and gathers
+        // the z lines into a second copy (plus a small header per line).
+        let transient_bytes = if cubic {
+            voxels.saturating_mul(16).saturating_add(
+                (header.sizes[0] as u64).saturating_mul(header.sizes[1] as u64 * 48),
+            )
+        } else {
+            0
+        };
         let threads = opts
             .threads
             .unwrap_or_else(rayon::current_num_threads)
@@ -222,11 +245,49 @@ impl Plan {
         // for later frames), and display copies for the images being encoded.
         let kept_views = (crate::views::frames_per_batch(threads)
             + views.reuse_steps().map_or(0, |m| m.unsigned_abs() as usize))
+        .min(frame_list.len().max(1))
             * eyes.len()
             * scene.passes.len();
-        let film_bytes = (width * height) as u64
-            * 4
-            * (kept_views as u64 * channels_max as u64 + threads as u64 * eyes.len() as u64 * 3);
+        let pixels = width as u64 * height as u64;
+        let film_bytes = pixels.saturating_mul(
+            4 * (kept_views as u64 * channels_max as u64 + threads as u64 * eyes.len() as u64 * 3),
+        );
+        // what the files hold: one image, or both eyes side by side
+        let file_pixels = match scene.stereo {
+            Some(s) if matches!(s.layout, Layout::SideBySide | Layout::CrossEyed) => {
+                (2 * width as u64 + s.gap as u64) * height as u64
+            }
+            _ => pixels,
+        };
+        let combined = scene.stereo.is_some_and(|s| s.layout != Layout::Pair);
+        // per thread writing a frame: the quantised samples and the encoded file (or
+        // the NRRD's float samples and its text), and a combined stereo picture
+        let per_file = match scene.image.format {
+            Format::Nrrd => file_pixels.saturating_mul(8 * channels_max as u64),
+            _ => file_pixels.saturating_mul(16),
+        };
+        let output_bytes = (threads as u64).saturating_mul(per_file.saturating_add(if combined {
+            file_pixels.saturating_mul(16)
+        } else {
+            0
+        }));
+        let preview_pixels = (width.div_ceil(4).max(8) * height.div_ceil(4).max(8)) as u64;
+        let auto_any = scene.passes.iter().zip(&passes).any(|(p, rp)| {
+            rp.kind() != ImageKind::Rgba && p.window.is_none() && scene.image.format != Format::Nrrd
+        });
+        let preview_bytes = if auto_any {
+            let orbit_views = views.needed(0..total) as u64;
+            preview_pixels.saturating_mul(4 * (orbit_views + threads as u64))
+        } else {
+            0
+        };
+        // animations: a batch of decoded frames (8 bytes per pixel at most) and, for
+        // GIF, a frame being quantised per thread
+        let animation_bytes = if scene.animation.is_some() {
+            file_pixels.saturating_mul(8 * 3 * threads as u64)
+        } else {
+            0
+        };
         let diagonal = {
             let c = geometry.corners(header.sizes);
             (c[7] - c[0]).length()
@@ -237,6 +298,46 @@ impl Plan {
             .sum::<f64>()
             * views.needed(frame_list.iter().copied()) as f64;
         let out = opts.out.clone().unwrap_or_else(|| scene.image.out.clone());
+        let mut memory: Vec<(String, u64)> = Vec::new();
+        match &storage {
+            crate::volume::Storage::Read { bytes, reason } => {
+                memory.push((format!("volume, read into memory ({reason})"), *bytes));
+            }
+            crate::volume::Storage::Mapped { .. } => {}
+        }
+        for g in &gradient_methods {
+            memory.push((
+                format!("{} gradient volume (3 floats per voxel)", g.name()),
+                voxels.saturating_mul(12),
+            ));
+        }
+        if cubic {
+            memory.push((
+                "cubic B-spline coefficients (a float per voxel)".into(),
+                voxels.saturating_mul(4),
+            ));
+            memory.push((
+                "cubic prefilter while it runs (two double-precision copies)".into(),
+                transient_bytes,
+            ));
+        }
+        let small = (grids.len() as u64 * MacroGrid::bytes(header.sizes))
+            .saturating_add(table_bytes)
+            .saturating_add(lut_bytes);
+        if small > 0 {
+            memory.push((
+                "macrocell grids, transfer-function and lookup tables".into(),
+                small,
+            ));
+        }
+        memory.push((
+            format!("rendered images in flight ({width} x {height}, {threads} threads)"),
+            film_bytes,
+        ));
+        if preview_bytes > 0 {
+            memory.push(("grey-window previews of every view".into(), preview_bytes));
+        }
+        memory.push(("images being encoded and written".into(), output_bytes));
         Ok(Plan {
             frames,
             shard: opts.shard,
@@ -257,6 +358,10 @@ impl Plan {
             precomputed_bytes,
             transient_bytes,
             film_bytes,
+            preview_bytes,
+            output_bytes,
+            animation_bytes,
+            memory,
             threads,
             samples_estimate,
         })
@@ -270,12 +375,62 @@ impl Plan {
         }
     }
 
-    /// Total estimated memory at its peak (while the precomputations are built).
+    /// Total estimated memory at its peak: everything of [`Plan::memory`] at once
+    /// (an upper bound: the prefilter's copies are freed before rendering), or the
+    /// animations' assembly after the images are written, if that is more.
     pub fn memory_bytes(&self) -> u64 {
-        self.volume_bytes
+        let render = self
+            .memory
+            .iter()
+            .fold(0u64, |a, (_, b)| a.saturating_add(*b));
+        let animate = self
+            .volume_bytes
             .saturating_add(self.precomputed_bytes)
-            .saturating_add(self.transient_bytes)
-            .saturating_add(self.film_bytes)
+            .saturating_add(self.animation_bytes);
+        render.max(animate)
+    }
+
+    /// An error, before anything is read, allocated or written, if the run's
+    /// estimated memory ([`Plan::memory_bytes`]) exceeds `limits.max_bytes`
+    /// (`--max-memory`); the message lists the estimate item by item.
+    pub fn check_memory(&self, scene: &Scene, limits: &crate::volume::Limits) -> Result<(), Error> {
+        let need = self.memory_bytes();
+        if need <= limits.max_bytes {
+            return Ok(());
+        }
+        let mut items: Vec<(String, u64)> = self.memory.clone();
+        if self.animation_bytes > 0 {
+            items.push((
+                "assembling the animations (after rendering)".into(),
+                self.animation_bytes,
+            ));
+        }
+        let width = items
+            .iter()
+            .map(|(w, _)| w.chars().count())
+            .max()
+            .unwrap_or(0);
+        let mut list = String::new();
+        for (what, bytes) in &items {
+            let _ = write!(list, "\n  {what:<width$}  {:>10}", human_bytes(*bytes));
+        }
+        let want = need as f64 * 1.1;
+        let suggest = if want < (1u64 << 30) as f64 {
+            format!("{}M", (want / (1u64 << 20) as f64).ceil())
+        } else {
+            format!("{}G", (want / (1u64 << 30) as f64).ceil())
+        };
+        Err(Error::Plan {
+            scene: scene.path.clone(),
+            message: format!(
+                "this run needs about {} of memory, more than the {} allowed by --max-memory:{list}\n\
+                 raise the limit (e.g. --max-memory {suggest}) if the machine has the memory, or need less: \
+                 smaller images (--size), gradients computed at the hit points instead of a gradient volume, \
+                 trilinear instead of cubic interpolation, or a raw volume in native byte order (mapped, not read)",
+                human_bytes(need),
+                human_bytes(limits.max_bytes),
+            ),
+        })
     }
 
     /// A human-readable description (what `volcast check` prints).
@@ -367,31 +522,30 @@ impl Plan {
             }
         }
         s.push_str(&crate::output::describe_outputs(scene, &self.out));
-        let transient = if self.transient_bytes > 0 {
-            format!(
-                ", {} more while the cubic prefilter runs",
-                human_bytes(self.transient_bytes)
-            )
-        } else {
-            String::new()
-        };
-        let volume = match &self.storage {
-            crate::volume::Storage::Mapped { path, bytes, .. } => format!(
+        let mut parts: Vec<String> = Vec::new();
+        if let crate::volume::Storage::Mapped { path, bytes, .. } = &self.storage {
+            parts.push(format!(
                 "volume mapped, not allocated: {} of {}",
                 human_bytes(*bytes),
                 path.display()
-            ),
-            crate::volume::Storage::Read { bytes, reason } => {
-                format!("volume {} read into memory ({reason})", human_bytes(*bytes))
-            }
-        };
+            ));
+        }
+        parts.extend(
+            self.memory
+                .iter()
+                .map(|(what, b)| format!("{what} {}", human_bytes(*b))),
+        );
+        if self.animation_bytes > 0 {
+            parts.push(format!(
+                "then {} to assemble the animations",
+                human_bytes(self.animation_bytes)
+            ));
+        }
         let _ = writeln!(
             s,
-            "memory   about {} allocated ({volume}; precomputed {}; images in flight {} for {} threads{transient})",
+            "memory   about {} at the peak, checked against --max-memory ({})",
             human_bytes(self.memory_bytes()),
-            human_bytes(self.precomputed_bytes),
-            human_bytes(self.film_bytes),
-            self.threads
+            parts.join("; ")
         );
         let _ = write!(s, "samples  at most about {:.3e}", self.samples_estimate);
         s

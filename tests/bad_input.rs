@@ -123,7 +123,7 @@ fn all_problems_are_reported_at_once() {
 #[test]
 fn missing_and_conflicting_sources() {
     let err = reject("[camera]\nfov = 20\n", &[]);
-    assert_has(&err, &["bad.toml", "missing field `volume`"]);
+    assert_has(&err, &["bad.toml:1:1", "missing [volume] table"]);
     let err = reject("[volume]\n", &[]);
     assert_has(&err, &["needs `path`", "or `synthetic`"]);
     let err = reject("[volume]\npath = \"a.nrrd\"\nsynthetic = \"ball\"\n", &[]);
@@ -274,4 +274,155 @@ fn non_finite_voxels_do_not_poison_images() {
         }
     }
     assert!(Path::new(&tmp.path().join("v.raw")).exists());
+}
+
+#[test]
+fn unknown_keys_are_reported_with_every_other_problem() {
+    // the reproducer: a misspelt `windw` hid the five other problems
+    let err = reject(
+        "[volume]\nsynthetic = \"ball\"\nwindw = [0, 1]\n[camera]\nfov = 500\nzoom = -1\n\
+         [[render]]\nmode = \"mip\"\nstep = -1\niso = 0.3\n[[render]]\nmode = \"surface\"\nmaterial = \"gld\"\n",
+        &[],
+    );
+    assert_has(
+        &err,
+        &[
+            "bad.toml:3:1: unknown field `windw`",
+            "did you mean `window`?",
+            "bad.toml:5:7: fov = 500",
+            "bad.toml:6:8: zoom = -1",
+            "bad.toml:9:8: step = -1",
+            "bad.toml:10:7: `iso` is not used by mode = \"mip\"",
+            "bad.toml:13:12: material = \"gld\"",
+            "(6 problems in this scene)",
+        ],
+    );
+    // several unknown keys and wrong types, in different tables, all at once, in
+    // file order; a key of the wrong type does not also count as missing
+    let err = reject(
+        "[volume]\nsynthetic = 5\nwindw = 1\n[camera]\nfov = \"x\"\nazimut = 3\n\
+         [[render]]\nmode = \"mip\"\nisoo = 3\n",
+        &[],
+    );
+    assert_has(
+        &err,
+        &[
+            "bad.toml:2:13: invalid type: integer `5`",
+            "bad.toml:3:1: unknown field `windw`",
+            "bad.toml:5:7: invalid type: string \"x\"",
+            "bad.toml:6:1: unknown field `azimut`",
+            "bad.toml:9:1: unknown field `isoo`",
+            "(5 problems in this scene)",
+        ],
+    );
+    assert!(!err.contains("needs `path`"), "{err}");
+    let lines: Vec<usize> = err
+        .lines()
+        .filter_map(|l| l.split(':').nth(1)?.parse().ok())
+        .collect();
+    assert!(lines.windows(2).all(|w| w[0] <= w[1]), "{lines:?}");
+}
+
+#[test]
+fn every_message_has_a_location() {
+    // nesting beyond the reader's limit, a truncated file, an empty one
+    let deep = format!("[volume]\nx = {}1{}\n", "[".repeat(300), "]".repeat(300));
+    let err = reject(&deep, &[]);
+    assert_has(&err, &["bad.toml:2:", "nesting too deep"]);
+    let dotted = format!("[volume]\n{}b = 1\n", "a.".repeat(300));
+    assert_has(&reject(&dotted, &[]), &["bad.toml:2:", "nesting too deep"]);
+    for (truncated, at) in [
+        ("[volume", "bad.toml:1:8"),
+        ("[volume]\npath = \"a", "bad.toml:2:10"),
+        ("a = [1,", "bad.toml:1:8"),
+        ("a = {", "bad.toml:1:6"),
+    ] {
+        let err = reject(truncated, &[]);
+        assert_has(&err, &[at]);
+    }
+    assert_has(&reject("", &[]), &["bad.toml: missing [volume] table"]);
+    assert_has(
+        &reject("[camera]\n", &[]),
+        &["bad.toml:1:1: missing [volume] table"],
+    );
+    // not UTF-8: the place of the first bad byte
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(
+        tmp.path().join("bin.toml"),
+        b"[volume]\nsynthetic = \"b\xffall\"\n",
+    )
+    .unwrap();
+    let o = volcast(tmp.path(), &["check", "bin.toml"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("bin.toml:2:15: the scene file is not UTF-8"),
+        "{err}"
+    );
+    // a folder where a file is expected names the folder and says what it is
+    let err = reject("[volume]\npath = \"sub.nrrd\"\n", &[]);
+    assert!(
+        err.contains("No such file") || err.contains("sub.nrrd"),
+        "{err}"
+    );
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::create_dir(tmp.path().join("vol.nrrd")).unwrap();
+    std::fs::write(
+        tmp.path().join("s.toml"),
+        "[volume]\npath = \"vol.nrrd\"\n[[render]]\nmode = \"mip\"\n",
+    )
+    .unwrap();
+    let o = volcast(tmp.path(), &["render", "s.toml"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        err.contains("vol.nrrd: is a directory, not a regular file"),
+        "{err}"
+    );
+    assert!(!tmp.path().join("out").exists());
+}
+
+#[test]
+fn raw_sizes_too_large_are_called_too_large() {
+    for sizes in ["[4e9, 1, 1]", "[4000000000, 1, 1]"] {
+        let err = reject(
+            &format!("[volume]\npath = \"v.raw\"\nsizes = {sizes}\ntype = \"uint8\"\n"),
+            &[("v.raw", &[0u8; 8])],
+        );
+        assert_has(&err, &["bad.toml:3:9:", "4000000000 is too large"]);
+        assert!(!err.contains("at least"), "{err}");
+    }
+    let err = reject(
+        "[volume]\npath = \"v.raw\"\nsizes = [0, 2.5, 1]\ntype = \"uint8\"\n",
+        &[("v.raw", &[0u8; 8])],
+    );
+    assert_has(&err, &["0 is too small"]);
+}
+
+#[test]
+fn a_refused_run_leaves_no_stray_folder() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(
+        dir.join("s.toml"),
+        "[volume]\npath = \"v.nrrd\"\n[[render]]\nmode = \"mip\"\n",
+    )
+    .unwrap();
+    // a volume whose data turns out short: refused after the header was read
+    std::fs::write(
+        dir.join("v.nrrd"),
+        b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: raw\n\n\x01\x02",
+    )
+    .unwrap();
+    let o = volcast(dir, &["render", "s.toml", "--out", "a/b/c"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        !dir.join("a").exists(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    // a folder that existed before is left alone
+    std::fs::create_dir(dir.join("mine")).unwrap();
+    let o = volcast(dir, &["render", "s.toml", "--out", "mine/x"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(dir.join("mine").is_dir() && !dir.join("mine/x").exists());
 }

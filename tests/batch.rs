@@ -342,7 +342,7 @@ fn the_manifest_reproduces_the_run() {
     let dir = tmp.path();
     render(dir, "first", &["--quiet"]);
     let m = manifest(&dir.join("first"));
-    assert_eq!(m["format"], "volcast-manifest-1");
+    assert_eq!(m["format"], "volcast-manifest-2");
     assert_eq!(m["volcast_version"], env!("CARGO_PKG_VERSION"));
     assert_eq!(m["volume"]["sizes"], serde_json::json!([14, 14, 14]));
     assert_eq!(m["scene"]["resolved"]["stereo"]["method"], "toe-in");
@@ -520,4 +520,145 @@ fn shard_arguments_are_checked() {
         .filter(|n| n.starts_with("mip") && n.ends_with("left.png"))
         .collect();
     assert_eq!(names, ["mip_0001_left.png", "mip_0004_left.png"]);
+}
+
+/// A Slurm job array of 8 tasks with `--shard auto/8`, one task failing: the safety
+/// net (`--finish-only`, run `afterany`) renders nothing and names what is missing;
+/// resubmitting the failed task alone (`sbatch --array=5`) renders exactly its shard,
+/// and the sequence then completes byte for byte like one run.
+#[test]
+fn a_failed_array_task_is_resubmitted_alone_and_finished() {
+    let tmp = setup(SCENE);
+    let dir = tmp.path();
+    render(dir, "full", &["--quiet"]);
+    let full = images(&dir.join("full"));
+    let full_anim = files(&dir.join("full"), &["gif", "apng"]);
+    let task = |id: usize, array: (usize, usize)| {
+        let (id, count) = (id.to_string(), (array.1 - array.0 + 1).to_string());
+        let (min, max) = (array.0.to_string(), array.1.to_string());
+        volcast_env(
+            dir,
+            &[
+                "render", "s.toml", "--out", "arr", "--shard", "auto/8", "--resume", "--quiet",
+            ],
+            &[
+                ("SLURM_ARRAY_TASK_ID", id.as_str()),
+                ("SLURM_ARRAY_TASK_COUNT", count.as_str()),
+                ("SLURM_ARRAY_TASK_MIN", min.as_str()),
+                ("SLURM_ARRAY_TASK_MAX", max.as_str()),
+            ],
+        )
+    };
+    // --array=0-7, task 5 fails (here: never runs)
+    for id in (0..8).filter(|&i| i != 5) {
+        ok(&task(id, (0, 7)));
+    }
+    let out = dir.join("arr");
+    assert_eq!(images(&out).len(), 6 * 2 * 2);
+    // the safety net renders nothing and says what is missing, and which shard
+    let o = volcast_env(
+        dir,
+        &["render", "s.toml", "--out", "arr", "--finish-only"],
+        &[],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--finish-only: 2 of 14 images are missing")
+            && err.contains("composite frames 5")
+            && err.contains("mip frames 5")
+            && err.contains("shard 5 of 8")
+            && err.contains("--array=5"),
+        "{err}"
+    );
+    assert_eq!(images(&out).len(), 6 * 2 * 2, "nothing was rendered");
+    assert!(files(&out, &["gif", "apng"]).is_empty());
+    assert_eq!(manifest(&out)["complete"], false);
+    // sbatch --array=5 turntable.sbatch: SLURM_ARRAY_TASK_COUNT is 1, the shard stays 5/8
+    let err = ok(&task(5, (5, 5)));
+    assert!(err.is_empty(), "{err}");
+    let now = images(&out);
+    assert_eq!(
+        now.len(),
+        7 * 2 * 2,
+        "exactly the missing frame was rendered"
+    );
+    assert!(now == full);
+    // the last task assembled the animations; the safety net now succeeds
+    let o = volcast_env(
+        dir,
+        &["render", "s.toml", "--out", "arr", "--finish-only"],
+        &[],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(err.contains("all 14 images complete"), "{err}");
+    assert!(files(&out, &["gif", "apng"]) == full_anim);
+    // a damaged animation is rebuilt by --finish-only too
+    let gif = out.join("mip_left.gif");
+    let mut b = std::fs::read(&gif).unwrap();
+    let i = b.len() / 2;
+    b[i] ^= 1;
+    std::fs::write(&gif, &b).unwrap();
+    ok(&volcast_env(
+        dir,
+        &[
+            "render",
+            "s.toml",
+            "--out",
+            "arr",
+            "--finish-only",
+            "--quiet",
+        ],
+        &[],
+    ));
+    assert!(files(&out, &["gif", "apng"]) == full_anim);
+}
+
+#[test]
+fn finish_only_and_auto_n_arguments_are_checked() {
+    let tmp = setup(SCENE);
+    let dir = tmp.path();
+    for (args, code, expect) in [
+        (
+            vec!["--finish-only", "--shard", "1/2"],
+            2,
+            "cannot be used with",
+        ),
+        (
+            vec!["--finish-only", "--frames", "0..2"],
+            2,
+            "cannot be used with",
+        ),
+        (vec!["--shard", "auto/0"], 2, "auto/N"),
+        (
+            vec!["--shard", "auto/8"],
+            1,
+            "SLURM_ARRAY_TASK_ID is not set",
+        ),
+        (
+            vec!["--finish-only"],
+            1,
+            "does not exist: nothing has been rendered",
+        ),
+    ] {
+        let mut a = vec!["render", "s.toml", "--out", "x"];
+        a.extend(args.iter().copied());
+        let o = volcast_env(dir, &a, &[]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {err}");
+        assert!(err.contains(expect), "{args:?}: {err}");
+        assert!(!dir.join("x").exists(), "{args:?} wrote files");
+    }
+    let o = volcast_env(
+        dir,
+        &["render", "s.toml", "--out", "x", "--shard", "auto/8"],
+        &[
+            ("SLURM_ARRAY_TASK_ID", "8"),
+            ("SLURM_ARRAY_TASK_COUNT", "9"),
+        ],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("--array=0-7"), "{err}");
 }

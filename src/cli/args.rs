@@ -86,15 +86,24 @@ pub struct SceneArgs {
     /// Worker threads (default: one per core). Output is identical for any value.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
-    /// Largest voxel buffer to allocate, e.g. `8G`, `512M` (default: 16G or 3/4 of RAM).
-    /// Memory-mapped volumes (raw data in native byte order) do not count.
+    /// Most memory the run may use, e.g. `8G`, `512M` (default: 16G or 3/4 of RAM):
+    /// the voxels read, gradient volumes, coefficients, tables and images. The plan's
+    /// estimate is checked before anything is read. Memory-mapped volumes (raw data in
+    /// native byte order) do not count.
     #[arg(long, value_name = "BYTES", value_parser = parse_bytes)]
     pub max_memory: Option<u64>,
     /// Render the K-th of N interleaved parts of the frames (K from 0 to N-1): frames
-    /// K, K+N, K+2N, ... of the selected range. `auto` takes K and N from a Slurm job
-    /// array (SLURM_ARRAY_TASK_ID, _COUNT and _MIN).
-    #[arg(long, value_name = "K/N|auto", value_parser = parse_shard)]
+    /// K, K+N, K+2N, ... of the selected range. `auto/N` (for Slurm job arrays) takes
+    /// K = SLURM_ARRAY_TASK_ID, so a resubmitted task renders its own shard of N;
+    /// `auto` takes K and N from the array (SLURM_ARRAY_TASK_ID, _COUNT and _MIN).
+    #[arg(long, value_name = "K/N|auto/N|auto", value_parser = parse_shard)]
     pub shard: Option<ShardArg>,
+    /// Only read volume files, and write output, under DIR (after resolving `..` and
+    /// links): the scene's volume path, every NRRD `data file` and the output folder.
+    /// Use it to render untrusted scenes or volumes (course submissions, a shared
+    /// service).
+    #[arg(long, value_name = "DIR")]
+    pub confine: Option<PathBuf>,
     /// Skip the images that the output folder's manifest shows are complete and
     /// belong to this very scene (same scene, volume header, size and version).
     #[arg(long)]
@@ -114,6 +123,8 @@ pub struct SceneArgs {
 pub enum ShardArg {
     /// From the Slurm environment.
     Auto,
+    /// The task ID from the Slurm environment, of this many shards.
+    AutoOf(usize),
     /// Given on the command line.
     Fixed(volcast::batch::Shard),
 }
@@ -121,6 +132,13 @@ pub enum ShardArg {
 fn parse_shard(s: &str) -> Result<ShardArg, String> {
     if s.trim() == "auto" {
         Ok(ShardArg::Auto)
+    } else if let Some(n) = s.trim().strip_prefix("auto/") {
+        match n.trim().parse::<usize>() {
+            Ok(n) if n >= 1 => Ok(ShardArg::AutoOf(n)),
+            _ => Err(format!(
+                "--shard {s}: expected auto/N with N the number of shards, a whole number of at least 1 (e.g. auto/8)"
+            )),
+        }
     } else {
         s.parse()
             .map(ShardArg::Fixed)
@@ -132,6 +150,11 @@ fn parse_shard(s: &str) -> Result<ShardArg, String> {
 pub struct RenderArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
+    /// Render nothing: merge the manifest and assemble the animations from the images
+    /// that exist (and are intact), and report what is missing (exit status 1 if
+    /// anything is). For the safety-net job after a Slurm array.
+    #[arg(long, conflicts_with_all = ["shard", "frames"])]
+    pub finish_only: bool,
     /// No progress bar and no summary (errors are still printed).
     #[arg(long, short)]
     pub quiet: bool,
@@ -161,13 +184,17 @@ fn parse_frames(s: &str) -> Result<Range<usize>, String> {
             .parse::<usize>()
             .map_err(|_| format!("expected a frame number, got `{t}` (use A..B, A..=B or N)"))
     };
+    let after = |n: usize| {
+        n.checked_add(1)
+            .ok_or_else(|| format!("frame {n} is too large to be a frame number"))
+    };
     let r = if let Some((a, b)) = s.split_once("..=") {
-        num(a)?..num(b)?.saturating_add(1)
+        num(a)?..after(num(b)?)?
     } else if let Some((a, b)) = s.split_once("..") {
         num(a)?..num(b)?
     } else {
         let n = num(s)?;
-        n..n.saturating_add(1)
+        n..after(n)?
     };
     if r.start >= r.end {
         return Err(format!("`{s}` is an empty range of frames"));
@@ -223,6 +250,9 @@ mod tests {
         assert_eq!(parse_frames("7"), Ok(7..8));
         assert!(parse_frames("5..2").is_err());
         assert!(parse_frames("a..b").is_err());
+        let e = parse_frames("18446744073709551615").unwrap_err();
+        assert!(e.contains("too large") && !e.contains("empty"), "{e}");
+        assert!(parse_frames("0..=18446744073709551615").is_err());
     }
 
     #[test]
@@ -237,6 +267,9 @@ mod tests {
         );
         assert!(parse_shard("3/3").unwrap_err().contains("below N"));
         assert!(parse_shard("x").unwrap_err().contains("expected K/N"));
+        assert_eq!(parse_shard("auto/8"), Ok(ShardArg::AutoOf(8)));
+        assert!(parse_shard("auto/0").unwrap_err().contains("auto/N"));
+        assert!(parse_shard("auto/x").is_err());
     }
 
     #[test]

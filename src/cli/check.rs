@@ -10,32 +10,29 @@ use super::args::CheckArgs;
 pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
     let (scene, opts, limits) = super::render::prepare(&a.scene)?;
     let context = || format!("checking {}", scene.path.display());
+    let _scope = volcast::pipeline::confine_run(&scene, &opts).with_context(context)?;
     let header = scene.volume.source.header().with_context(context)?;
     let plan = Plan::build(&scene, &header, &opts)?;
-    // The memory limit is for voxels volcast reads into memory, not for mapped ones.
-    if !scene
-        .volume
-        .source
-        .storage()
-        .with_context(context)?
-        .is_mapped()
-    {
-        limits
-            .check(&header.sizes, header.scalar_type.size())
-            .with_context(context)?;
-    }
-    println!("{}", plan.describe(&scene, &header));
+    plan.check_memory(&scene, &limits)?;
+    let mut text = plan.describe(&scene, &header);
+    text.push('\n');
     if opts.resume {
-        let done =
-            volcast::pipeline::completed_images(&scene, &header, &plan).with_context(context)?;
-        println!(
-            "resume   {done} of {} images of these frames are complete and will be skipped",
-            plan.frame_list.len() * scene.passes.len()
-        );
+        let total = plan.frame_list.len() * scene.passes.len();
+        text += &match volcast::pipeline::completed_images(&scene, &header, &plan)
+            .with_context(context)?
+        {
+            Some(done) => format!(
+                "resume   {done} of {total} images of these frames are complete and will be skipped\n"
+            ),
+            None => format!(
+                "resume   the volume's files are not those the output folder's manifest recorded (or it recorded none): render --resume hashes the voxels to tell which of the {total} images are still valid\n"
+            ),
+        };
     }
     for w in &scene.warnings {
-        println!("warning  {w}");
+        text += &format!("warning  {w}\n");
     }
-    println!("ok");
+    text += "ok\n";
+    super::print(&text).context("printing the plan")?;
     Ok(ExitCode::SUCCESS)
 }

@@ -38,7 +38,9 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
             "histogram": { "bins": stats.histogram.len(), "min": finite_or_null(stats.min), "max": finite_or_null(stats.max), "counts": stats.histogram },
             "fields": h.fields.iter().map(|(k, v)| (k.clone(), serde_json::Value::String(v.clone()))).collect::<serde_json::Map<_, _>>(),
         });
-        println!("{}", serde_json::to_string_pretty(&json)?);
+        let mut text = serde_json::to_string_pretty(&json)?;
+        text.push('\n');
+        super::print(&text)?;
         return Ok(ExitCode::SUCCESS);
     }
     let mut s = String::new();
@@ -96,7 +98,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
     for (k, v) in &h.fields {
         writeln!(s, "{k:<10} {v}")?;
     }
-    print!("{s}");
+    super::print(&s)?;
     Ok(ExitCode::SUCCESS)
 }
 

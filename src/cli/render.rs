@@ -10,6 +10,7 @@ use volcast::volume::human_bytes;
 use volcast::batch::Shard;
 
 use super::args::{RenderArgs, SceneArgs, ShardArg};
+use super::say;
 
 /// The scene, options and limits common to `render` and `check`.
 pub(super) fn prepare(
@@ -24,6 +25,7 @@ pub(super) fn prepare(
         None => None,
         Some(ShardArg::Fixed(s)) => Some(s),
         Some(ShardArg::Auto) => Some(Shard::from_slurm(|k| std::env::var(k).ok())?),
+        Some(ShardArg::AutoOf(n)) => Some(Shard::from_slurm_of(n, |k| std::env::var(k).ok())?),
     };
     let opts = volcast::plan::RunOptions {
         out: a.out.clone(),
@@ -34,6 +36,8 @@ pub(super) fn prepare(
         resume: a.resume,
         no_view_reuse: a.no_view_reuse,
         no_skip: a.no_skip,
+        confine: a.confine.clone(),
+        ..Default::default()
     };
     let mut limits = volcast::volume::Limits::default();
     if let Some(m) = a.max_memory {
@@ -75,10 +79,11 @@ impl Progress for Bar {
 }
 
 pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
-    let (scene, opts, limits) = prepare(&a.scene)?;
+    let (scene, mut opts, limits) = prepare(&a.scene)?;
+    opts.finish_only = a.finish_only;
     if !a.quiet {
         for w in &scene.warnings {
-            eprintln!("volcast: warning: {w}");
+            say!("volcast: warning: {w}");
         }
     }
     let bar = if a.quiet {
@@ -102,7 +107,68 @@ pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     if !a.quiet {
         report(&summary);
     }
+    if a.finish_only {
+        if let Some(m) = summary.manifest.as_ref().filter(|m| !m.complete()) {
+            anyhow::bail!("{}", missing_message(m));
+        }
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// What `--finish-only` found missing: the images by pass, as frame ranges, and
+/// which shards to render again when the records name one shard count.
+fn missing_message(m: &volcast::output::manifest::ManifestStatus) -> String {
+    let mut by_pass: Vec<(&str, Vec<usize>)> = Vec::new();
+    for (pass, k) in &m.missing {
+        match by_pass.last_mut() {
+            Some((p, frames)) if *p == pass.as_str() => frames.push(*k),
+            _ => by_pass.push((pass.as_str(), vec![*k])),
+        }
+    }
+    let passes: Vec<String> = by_pass
+        .iter()
+        .map(|(p, frames)| format!("{p} frames {}", ranges(frames)))
+        .collect();
+    let shards = match m.shard_counts.as_slice() {
+        [n] => {
+            let mut ks: Vec<usize> = m.missing.iter().map(|(_, k)| k % n).collect();
+            ks.sort_unstable();
+            ks.dedup();
+            let list: Vec<String> = ks.iter().map(|k| k.to_string()).collect();
+            format!(
+                "; they belong to shard{} {} of {n}: resubmit those array tasks (sbatch --array={} ...) with --shard auto/{n}",
+                if ks.len() > 1 { "s" } else { "" },
+                list.join(", "),
+                list.join(",")
+            )
+        }
+        _ => String::new(),
+    };
+    format!(
+        "--finish-only: {} of {} images are missing or damaged, so the sequence is incomplete ({}){shards}; render them with --resume",
+        m.total - m.done,
+        m.total,
+        passes.join("; ")
+    )
+}
+
+/// `0..=3, 7, 9..=10` for frames 0 1 2 3 7 9 10.
+fn ranges(frames: &[usize]) -> String {
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < frames.len() {
+        let mut j = i;
+        while j + 1 < frames.len() && frames[j + 1] == frames[j] + 1 {
+            j += 1;
+        }
+        out.push(if j == i {
+            frames[i].to_string()
+        } else {
+            format!("{}..={}", frames[i], frames[j])
+        });
+        i = j + 1;
+    }
+    out.join(", ")
 }
 
 /// The closing summary, on stderr.
@@ -134,7 +200,7 @@ fn report(summary: &pipeline::Summary) {
     } else {
         String::new()
     };
-    eprintln!(
+    say!(
         "volcast: {} files ({} views rendered{skipped}, {}) in {:.2} s, {:.1} M samples/s{skipping} -> {folder}",
         summary.files.len(),
         summary.views,
@@ -144,7 +210,7 @@ fn report(summary: &pipeline::Summary) {
     );
     if let Some(m) = &summary.manifest {
         if m.complete() {
-            eprintln!(
+            say!(
                 "volcast: manifest {}: all {} images complete",
                 m.path.display(),
                 m.total
@@ -155,10 +221,10 @@ fn report(summary: &pipeline::Summary) {
                 } else {
                     ""
                 };
-                eprintln!("volcast: to make a video: {cmd}{more}");
+                say!("volcast: to make a video: {cmd}{more}");
             }
         } else {
-            eprintln!(
+            say!(
                 "volcast: manifest {}: {} of {} images done; the rest come from other shards or runs (animations are assembled once every frame exists: rerun with --resume to finish)",
                 m.path.display(),
                 m.done,
@@ -167,7 +233,7 @@ fn report(summary: &pipeline::Summary) {
         }
     }
     for a in &summary.animations {
-        eprintln!(
+        say!(
             "volcast: animation {} ({} frames at {} fps)",
             a.path.display(),
             a.frames,
@@ -175,6 +241,6 @@ fn report(summary: &pipeline::Summary) {
         );
     }
     for n in &summary.notes {
-        eprintln!("volcast: note: {n}");
+        say!("volcast: note: {n}");
     }
 }

@@ -13,7 +13,6 @@
 //!   hundredths of a second, so the frame time is `round(100/fps)` hundredths, at
 //!   least 2 (browsers slow smaller delays down): 24 fps plays at 25.
 
-use std::fs::File;
 use std::io::{BufReader, Write};
 use std::path::{Path, PathBuf};
 
@@ -96,6 +95,9 @@ pub struct Written {
     pub frames: usize,
     /// The frame rate it plays at (GIF: after rounding the delay).
     pub fps: f64,
+    /// SHA-256 of the frames' hashes it was made from, when known (recorded in the
+    /// manifest to tell whether it is still up to date).
+    pub frames_sha256: Option<String>,
 }
 
 /// Writes every animation of `scene` into `out` from the frame files there.
@@ -116,6 +118,7 @@ pub fn assemble(out: &Path, scene: &Scene, anim: &Animation) -> Result<Vec<Writt
                 format,
                 frames: frames.len(),
                 fps,
+                frames_sha256: None,
             });
         }
     }
@@ -131,12 +134,22 @@ struct Decoded {
     data: Vec<u8>,
 }
 
+/// Decodes the frame at `path`, opened in its folder without following a link and
+/// decoded into a fallibly allocated buffer.
 fn decode(path: &Path) -> Result<Decoded, Error> {
     let fail = |message: String| Error::Encode {
         path: path.to_path_buf(),
         message,
     };
-    let file = File::open(path).map_err(|e| fail(format!("cannot read a frame: {e}")))?;
+    let (dir, name) = (
+        path.parent().unwrap_or(Path::new(".")),
+        path.file_name()
+            .and_then(|n| n.to_str())
+            .ok_or_else(|| fail("not a frame file name".into()))?,
+    );
+    let file = super::write::Folder::open(dir)
+        .and_then(|f| f.open_regular(name))
+        .map_err(|e| fail(format!("cannot read a frame: {e}")))?;
     let mut decoder = png::Decoder::new(BufReader::new(file));
     decoder.set_transformations(png::Transformations::IDENTITY);
     let mut reader = decoder
@@ -145,7 +158,7 @@ fn decode(path: &Path) -> Result<Decoded, Error> {
     let size = reader
         .output_buffer_size()
         .ok_or_else(|| fail("frame too large".into()))?;
-    let mut data = vec![0; size];
+    let mut data = super::try_zeroed(size).map_err(|e| fail(e.to_string()))?;
     let info = reader
         .next_frame(&mut data)
         .map_err(|e| fail(format!("cannot decode the frame: {e}")))?;

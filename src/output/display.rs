@@ -66,15 +66,20 @@ impl Window {
 }
 
 /// Converts a film to display values: 1 channel (grey) where the film is an
-/// intensity film and the background is grey, else 3 (RGB).
-pub fn to_display(film: &Film, kind: DisplayKind, background: [f32; 3]) -> Film {
+/// intensity film and the background is grey, else 3 (RGB). The new film is
+/// allocated fallibly.
+pub fn to_display(
+    film: &Film,
+    kind: DisplayKind,
+    background: [f32; 3],
+) -> Result<Film, super::AllocError> {
     let grey_bg = background[0] == background[1] && background[1] == background[2];
     let channels = match kind {
         DisplayKind::Rgba => 3,
         _ if grey_bg => 1,
         _ => 3,
     };
-    let mut out = Film::new(film.width, film.height, channels);
+    let mut out = super::try_film(film.width, film.height, channels)?;
     for (src, dst) in film
         .data
         .chunks_exact(film.channels)
@@ -102,7 +107,7 @@ pub fn to_display(film: &Film, kind: DisplayKind, background: [f32; 3]) -> Film 
             }
         }
     }
-    out
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -119,9 +124,9 @@ mod tests {
         };
         let w = Window::of_films([&f]);
         assert_eq!((w.lo, w.hi), (1.0, 3.0));
-        let d = to_display(&f, DisplayKind::Intensity(w), [0.25; 3]);
+        let d = to_display(&f, DisplayKind::Intensity(w), [0.25; 3]).unwrap();
         assert_eq!(d.data, vec![0.0, 1.0, 0.25]);
-        let d = to_display(&f, DisplayKind::Depth(w), [0.0, 0.0, 1.0]);
+        let d = to_display(&f, DisplayKind::Depth(w), [0.0, 0.0, 1.0]).unwrap();
         assert_eq!(d.channels, 3);
         assert_eq!(d.data, vec![1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
     }
@@ -134,7 +139,7 @@ mod tests {
             channels: 4,
             data: vec![1.0, 0.0, 0.0, 0.5],
         };
-        let d = to_display(&f, DisplayKind::Rgba, [0.0, 0.0, 1.0]);
+        let d = to_display(&f, DisplayKind::Rgba, [0.0, 0.0, 1.0]).unwrap();
         assert_eq!(d.data, vec![0.5, 0.0, 0.5]);
     }
 

@@ -12,12 +12,16 @@
 //!   re-reads the records after writing it and merges again if another shard added
 //!   records meanwhile, so the last shard to finish leaves the full manifest.
 //!
-//! The scene hash ([`scene_digest`]) is a SHA-256 over a canonical encoding of the
-//! scene as parsed (comments, spacing and key order do not matter; `[image] out`
-//! and `[animation]` are left out because they do not change any image), the
-//! volume's header, the image size and the program version. `--resume` skips a
-//! (pass, frame) only when its record has this hash and all its files exist with
-//! the recorded sizes.
+//! The scene hash ([`scene_digest`] then [`data_digest`]) is a SHA-256 over a
+//! canonical encoding of the scene as parsed (comments, spacing and key order do
+//! not matter; `[image] out` and `[animation]` are left out because they do not
+//! change any image), the volume's header, the image size, the program version and
+//! the voxel data's XXH3-128 (computed while the data is decoded; a run with nothing
+//! left to render may take it from `manifest.json` when the volume's files have the
+//! size and modification time recorded there). `--resume` skips a (pass, frame) only
+//! when its record has this hash and every file it lists exists with the recorded
+//! size and SHA-256. `manifest.json` also records each animation's size and SHA-256
+//! and the frames it was made from, so a damaged or stale animation is rebuilt.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -25,22 +29,25 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
-use super::write::write_atomic;
+use super::write::{Folder, Kind};
 use crate::error::Error;
 use crate::render::View;
 use crate::scene::{
     AnaglyphColors, Layout, LightKindSpec, Mode, Projection, Scene, Separation, StereoMethod,
 };
 use crate::views::ViewKey;
-use crate::volume::VolumeHeader;
+use crate::volume::{FileStamp, VolumeHeader, VolumeIdentity};
 use sha2::{Digest, Sha256};
 
 /// File name of the merged manifest.
 pub const MANIFEST: &str = "manifest.json";
 /// Folder of the per-(pass, frame) records.
 pub const RECORDS: &str = "manifest.d";
-/// Identifies the manifest's layout.
-pub const MANIFEST_FORMAT: &str = "volcast-manifest-1";
+/// Identifies the manifest's layout. Version 2 adds the voxel data to the scene
+/// hash, the volume's identity and the animations' hashes; the records of a
+/// version 1 manifest never match a version 2 scene hash, so their images are
+/// rendered again (and the run says so).
+pub const MANIFEST_FORMAT: &str = "volcast-manifest-2";
 
 /// One written file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -160,24 +167,79 @@ pub fn record_path(out: &Path, pass: &str, frame: usize) -> PathBuf {
     out.join(RECORDS).join(format!("{pass}_{frame:04}.json"))
 }
 
-/// Writes a record atomically (the records folder must exist).
+/// Largest record or manifest volcast reads back (a planted giant is an error, not
+/// an allocation).
+const MAX_JSON: u64 = 64 << 20;
+
+/// The output folder `out` (followed as given).
+pub(crate) fn out_folder(out: &Path) -> Result<Folder, Error> {
+    Folder::open(out).map_err(|source| Error::Output {
+        path: out.to_path_buf(),
+        source,
+    })
+}
+
+/// The records folder of `out`, created if missing (never through a link).
+pub(crate) fn records_folder(out: &Path) -> Result<Folder, Error> {
+    out_folder(out)?
+        .subfolder(RECORDS)
+        .map_err(|source| Error::Output {
+            path: out.join(RECORDS),
+            source,
+        })
+}
+
+/// The records folder of `out` if it exists (never through a link).
+fn existing_records(out: &Path) -> Result<Option<Folder>, Error> {
+    let folder = match Folder::open(out) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => {
+            return Err(Error::Output {
+                path: out.to_path_buf(),
+                source,
+            })
+        }
+    };
+    match folder.open_subfolder(RECORDS) {
+        Ok(f) => Ok(Some(f)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(source) => Err(Error::Output {
+            path: out.join(RECORDS),
+            source,
+        }),
+    }
+}
+
+/// The file name of the record of (`pass`, `frame`).
+fn record_name(pass: &str, frame: usize) -> String {
+    format!("{pass}_{frame:04}.json")
+}
+
+/// Writes a record atomically into `out`'s records folder (created if missing).
 pub fn write_record(out: &Path, record: &FrameRecord) -> Result<(), Error> {
     let path = record_path(out, &record.pass, record.frame);
     let text = serde_json::to_vec_pretty(record).map_err(|e| Error::Manifest {
         path: path.clone(),
         message: e.to_string(),
     })?;
-    write_atomic(&path, &text).map_err(|source| Error::Output { path, source })
+    records_folder(out)?
+        .write_atomic(&record_name(&record.pass, record.frame), &text)
+        .map_err(|source| Error::Output { path, source })
 }
 
 /// Reads the record of (`pass`, `frame`): `None` if there is none. A file that is
-/// not a record is an error that says what was expected.
+/// not a record (or a link, or not a regular file) is an error that says what was
+/// expected.
 pub fn read_record(out: &Path, pass: &str, frame: usize) -> Result<Option<FrameRecord>, Error> {
     let path = record_path(out, pass, frame);
-    let bytes = match std::fs::read(&path) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(source) => return Err(Error::Output { path, source }),
+    let Some(folder) = existing_records(out)? else {
+        return Ok(None);
+    };
+    let bytes = match folder.read_regular(&record_name(pass, frame), MAX_JSON) {
+        Ok(Some(b)) => b,
+        Ok(None) => return Ok(None),
+        Err(source) => return Err(Error::Read { path, source }),
     };
     match serde_json::from_slice::<FrameRecord>(&bytes) {
         Ok(r) if r.pass == pass && r.frame == frame => Ok(Some(r)),
@@ -198,13 +260,59 @@ pub fn read_record(out: &Path, pass: &str, frame: usize) -> Result<Option<FrameR
 }
 
 /// Whether `record` shows a complete (pass, frame) of the scene hashed `digest`:
-/// the same hash, and every file present with its recorded size.
+/// the same hash, and every file present (a regular file, not a link) with its
+/// recorded size and SHA-256.
 pub fn is_complete(out: &Path, record: &FrameRecord, digest: &str) -> bool {
+    let Ok(folder) = Folder::open(out) else {
+        return false;
+    };
     record.scene_hash == digest
         && !record.files.is_empty()
-        && record.files.iter().all(|f| {
-            std::fs::metadata(out.join(&f.name)).is_ok_and(|m| m.is_file() && m.len() == f.bytes)
-        })
+        && record
+            .files
+            .iter()
+            .all(|f| file_matches(&folder, &f.name, f.bytes, &f.sha256))
+}
+
+/// Whether `name` in `folder` is a regular file of `bytes` bytes whose SHA-256 is
+/// `sha256` (hex). The size is compared first, so a file of another size is not read.
+pub(crate) fn file_matches(folder: &Folder, name: &str, bytes: u64, sha256: &str) -> bool {
+    let same_size = folder
+        .open_regular(name)
+        .and_then(|f| f.metadata())
+        .is_ok_and(|m| m.len() == bytes);
+    same_size && hash_file(folder, name).is_ok_and(|(n, h)| n == bytes && h == sha256)
+}
+
+/// SHA-256 (hex) and size of the regular file `name` in `folder`.
+pub(crate) fn hash_file(folder: &Folder, name: &str) -> std::io::Result<(u64, String)> {
+    use std::io::Read as _;
+    let mut file = folder.open_regular(name)?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 16];
+    let mut total = 0u64;
+    loop {
+        match file.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => {
+                h.update(&buf[..n]);
+                total += n as u64;
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok((total, hex(&h.finalize())))
+}
+
+/// SHA-256 (hex) of a list of strings, each length-prefixed (the identity of the
+/// frames an animation is made of).
+pub fn digest_of_list<'a>(items: impl IntoIterator<Item = &'a str>) -> String {
+    let mut h = Sha256::new();
+    for s in items {
+        put_str(&mut h, s);
+    }
+    hex(&h.finalize())
 }
 
 /// SHA-256 of a file's bytes, with its size.
@@ -224,7 +332,7 @@ pub fn file_record(path: &Path, bytes: &[u8]) -> FileRecord {
 /// The identity of a scene's images: see the module documentation.
 pub fn scene_digest(scene: &Scene, header: &VolumeHeader, width: usize, height: usize) -> String {
     let mut h = Sha256::new();
-    h.update(b"volcast scene digest 1\0");
+    h.update(b"volcast scene digest 2\0");
     put_str(&mut h, env!("CARGO_PKG_VERSION"));
     match scene.text.parse::<toml::Table>() {
         Ok(mut table) => {
@@ -258,6 +366,22 @@ pub fn scene_digest(scene: &Scene, header: &VolumeHeader, width: usize, height: 
     }
     h.update((width as u64).to_le_bytes());
     h.update((height as u64).to_le_bytes());
+    hex(&h.finalize())
+}
+
+/// The scene hash recorded with every image: [`scene_digest`] combined with the
+/// voxel data's hash (`None` for synthetic fields, which the scene defines).
+pub fn data_digest(scene_digest: &str, data_xxh3: Option<&str>) -> String {
+    let mut h = Sha256::new();
+    h.update(b"volcast data digest 1\0");
+    put_str(&mut h, scene_digest);
+    match data_xxh3 {
+        Some(d) => {
+            h.update(b"D");
+            put_str(&mut h, d);
+        }
+        None => h.update(b"S"),
+    }
     hex(&h.finalize())
 }
 
@@ -431,8 +555,8 @@ pub fn resolved_scene(scene: &Scene) -> Value {
     })
 }
 
-/// The volume's description.
-pub fn volume_json(header: &VolumeHeader) -> Value {
+/// The volume's description, with the identity of its data.
+pub fn volume_json(header: &VolumeHeader, identity: &VolumeIdentity) -> Value {
     json!({
         "source": header.source,
         "sizes": header.sizes,
@@ -441,7 +565,31 @@ pub fn volume_json(header: &VolumeHeader) -> Value {
         "origin": header.geometry.origin.to_array(),
         "axes": header.geometry.axes.map(|a| a.to_array()),
         "fields": header.fields.iter().map(|(k, v)| json!([k, v])).collect::<Vec<_>>(),
+        "data": {
+            "xxh3_128": identity.data_xxh3,
+            "files": identity.files,
+        },
     })
+}
+
+/// The format of a manifest read back (`None` when it names none).
+pub fn manifest_format(manifest: &Value) -> Option<&str> {
+    manifest.get("format").and_then(Value::as_str)
+}
+
+/// The volume identity a current-format manifest recorded, if any.
+pub fn recorded_identity(manifest: &Value) -> Option<VolumeIdentity> {
+    if manifest_format(manifest) != Some(MANIFEST_FORMAT) {
+        return None;
+    }
+    let data = manifest.get("volume")?.get("data")?;
+    let data_xxh3 = match data.get("xxh3_128")? {
+        Value::Null => None,
+        Value::String(s) => Some(s.clone()),
+        _ => return None,
+    };
+    let files: Vec<FileStamp> = serde_json::from_value(data.get("files")?.clone()).ok()?;
+    Some(VolumeIdentity { data_xxh3, files })
 }
 
 /// What the merged manifest found.
@@ -455,6 +603,11 @@ pub struct ManifestStatus {
     pub total: usize,
     /// Records that could not be read (named, with the reason).
     pub unreadable: Vec<String>,
+    /// The (pass, frame) images of the orbit that are missing (or damaged, or of
+    /// another scene), in pass and frame order.
+    pub missing: Vec<(String, usize)>,
+    /// The shard counts `N` named by the records present (`K/N`), in order.
+    pub shard_counts: Vec<usize>,
 }
 
 impl ManifestStatus {
@@ -470,17 +623,27 @@ pub struct ManifestHead<'a> {
     pub scene: &'a Scene,
     /// Its volume's header.
     pub header: &'a VolumeHeader,
-    /// [`scene_digest`].
+    /// Its voxel data's identity.
+    pub identity: &'a VolumeIdentity,
+    /// [`data_digest`].
     pub digest: &'a str,
     /// Image size of one view.
     pub size: (usize, usize),
-    /// Extra entries (animations, ffmpeg commands), merged into the top level.
-    pub extra: Value,
 }
 
+/// Extra top-level entries of the manifest (animations, ffmpeg commands), made from
+/// the records merged and how complete they are (it may assemble the animations).
+pub type Extra<'a> = dyn FnMut(&ManifestStatus, &[FrameRecord]) -> Result<Value, Error> + 'a;
+
 /// Merges the records of the current scene into `manifest.json` (see the module
-/// documentation) and reports how complete the sequence is.
-pub fn write_manifest(out: &Path, head: &ManifestHead) -> Result<ManifestStatus, Error> {
+/// documentation), with the entries `extra` makes, and reports how complete the
+/// sequence is. The file is written whole each time: a reader never sees a
+/// manifest without its animation entries.
+pub fn write_manifest(
+    out: &Path,
+    head: &ManifestHead,
+    extra: &mut Extra,
+) -> Result<ManifestStatus, Error> {
     let path = out.join(MANIFEST);
     let mut previous: Option<Vec<(String, usize)>> = None;
     // Merge until the set of records did not change while writing (at most a few
@@ -514,28 +677,57 @@ pub fn write_manifest(out: &Path, head: &ManifestHead) -> Result<ManifestStatus,
                 "resolved": resolved_scene(scene),
             },
             "render_size": [head.size.0, head.size.1],
-            "volume": volume_json(head.header),
+            "volume": volume_json(head.header, head.identity),
             "windows": windows,
             "totals": { "seconds": seconds, "samples": samples },
             "frames": records,
         });
-        if let (Value::Object(d), Value::Object(e)) = (&mut doc, &head.extra) {
-            for (k, v) in e {
-                d.insert(k.clone(), v.clone());
-            }
+        if let (Value::Object(d), Value::Object(e)) = (&mut doc, extra(&status, &records)?) {
+            d.extend(e);
         }
         let mut text = serde_json::to_vec_pretty(&doc).map_err(|e| Error::Manifest {
             path: path.clone(),
             message: e.to_string(),
         })?;
         text.push(b'\n');
-        write_atomic(&path, &text).map_err(|source| Error::Output {
-            path: path.clone(),
-            source,
-        })?;
+        write_manifest_file(out, &text)?;
         previous = Some(keys);
     }
     Ok(collect(out, head)?.1)
+}
+
+/// Writes `manifest.json` atomically; a link there is an error, not replaced.
+fn write_manifest_file(out: &Path, text: &[u8]) -> Result<(), Error> {
+    let path = out.join(MANIFEST);
+    let folder = out_folder(out)?;
+    if folder.kind_of(MANIFEST) == Some(Kind::Link) {
+        return Err(Error::Output {
+            path: path.clone(),
+            source: std::io::Error::other(format!(
+                "{} is a symbolic link: volcast does not follow links inside its output folder (someone else may have planted it); remove it, or use another output folder",
+                path.display()
+            )),
+        });
+    }
+    folder
+        .write_atomic(MANIFEST, text)
+        .map_err(|source| Error::Output { path, source })
+}
+
+/// Reads `manifest.json` of `out` as JSON: `None` when there is none or it is not
+/// JSON; a link or a special file there is an error.
+pub fn read_manifest(out: &Path) -> Result<Option<Value>, Error> {
+    let path = out.join(MANIFEST);
+    let folder = match Folder::open(out) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => return Err(Error::Output { path, source }),
+    };
+    match folder.read_regular(MANIFEST, MAX_JSON) {
+        Ok(Some(bytes)) => Ok(serde_json::from_slice(&bytes).ok()),
+        Ok(None) => Ok(None),
+        Err(source) => Err(Error::Read { path, source }),
+    }
 }
 
 /// The valid records of the current scene, in (pass, frame) order.
@@ -546,19 +738,41 @@ fn collect(out: &Path, head: &ManifestHead) -> Result<(Vec<FrameRecord>, Manifes
         total: scene.passes.len() * scene.orbit.frames,
         ..Default::default()
     };
+    let keys: Vec<(&str, usize)> = scene
+        .passes
+        .iter()
+        .flat_map(|p| (0..scene.orbit.frames).map(move |k| (p.name.as_str(), k)))
+        .collect();
+    // every file of every record is hashed: in parallel
+    let found: Vec<Result<Option<FrameRecord>, Error>> = {
+        use rayon::prelude::*;
+        keys.par_iter()
+            .map(|&(pass, k)| {
+                Ok(read_record(out, pass, k)?.filter(|r| is_complete(out, r, head.digest)))
+            })
+            .collect()
+    };
     let mut records = Vec::new();
-    for pass in &scene.passes {
-        for k in 0..scene.orbit.frames {
-            match read_record(out, &pass.name, k) {
-                Ok(Some(r)) if is_complete(out, &r, head.digest) => {
-                    status.done += 1;
-                    records.push(r);
-                }
-                Ok(_) => {}
-                Err(e) => status.unreadable.push(e.to_string()),
+    for (r, &(pass, k)) in found.into_iter().zip(&keys) {
+        match r {
+            Ok(Some(r)) => {
+                status.done += 1;
+                records.push(r);
+            }
+            Ok(None) => status.missing.push((pass.to_string(), k)),
+            Err(e) => {
+                status.unreadable.push(e.to_string());
+                status.missing.push((pass.to_string(), k));
             }
         }
     }
+    let mut counts: Vec<usize> = records
+        .iter()
+        .filter_map(|r| r.shard.as_deref()?.split_once('/')?.1.parse().ok())
+        .collect();
+    counts.sort_unstable();
+    counts.dedup();
+    status.shard_counts = counts;
     Ok((records, status))
 }
 

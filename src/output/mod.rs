@@ -15,9 +15,43 @@ pub use write::write_atomic;
 
 use std::path::{Path, PathBuf};
 
+use crate::render::Film;
 use crate::scene::{
     Anaglyph, AnaglyphColors, AnimationFormat, Format, Layout, Scene, Separation, StereoMethod,
 };
+
+/// An image buffer that could not be allocated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("out of memory: allocating {} for an image failed", crate::volume::human_bytes(*bytes))]
+pub struct AllocError {
+    /// Bytes asked for.
+    pub bytes: u64,
+}
+
+/// A zero-filled buffer of `n` elements, or an error instead of an abort when the
+/// memory is not there.
+pub fn try_zeroed<T: Clone + Default>(n: usize) -> Result<Vec<T>, AllocError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| AllocError {
+        bytes: (n as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+    })?;
+    v.resize(n, T::default());
+    Ok(v)
+}
+
+/// A zero-filled film, allocated fallibly.
+pub fn try_film(width: usize, height: usize, channels: usize) -> Result<Film, AllocError> {
+    let n = width
+        .checked_mul(height)
+        .and_then(|p| p.checked_mul(channels))
+        .ok_or(AllocError { bytes: u64::MAX })?;
+    Ok(Film {
+        width,
+        height,
+        channels,
+        data: try_zeroed(n)?,
+    })
+}
 
 /// Which eye an image belongs to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

@@ -5,14 +5,19 @@ use crate::render::Film;
 use crate::scene::{Anaglyph, AnaglyphColors};
 
 /// `first | gap | second`, the gap filled with `fill` (one value per channel).
-pub fn side_by_side(first: &Film, second: &Film, gap: usize, fill: &[f32]) -> Film {
+pub fn side_by_side(
+    first: &Film,
+    second: &Film,
+    gap: usize,
+    fill: &[f32],
+) -> Result<Film, super::AllocError> {
     assert_eq!(
         (first.width, first.height, first.channels),
         (second.width, second.height, second.channels)
     );
     let c = first.channels;
     let w = first.width * 2 + gap;
-    let mut out = Film::new(w, first.height, c);
+    let mut out = super::try_film(w, first.height, c)?;
     for (j, row) in out.data.chunks_exact_mut(w * c).enumerate() {
         fn src(f: &Film, j: usize) -> &[f32] {
             let n = f.width * f.channels;
@@ -26,7 +31,7 @@ pub fn side_by_side(first: &Film, second: &Film, gap: usize, fill: &[f32]) -> Fi
         }
         right.copy_from_slice(src(second, j));
     }
-    out
+    Ok(out)
 }
 
 /// Rec. 709 luma of a display pixel (grey pixels are their own luma).
@@ -53,9 +58,14 @@ fn rgb(px: &[f32]) -> [f32; 3] {
 /// anaglyph: left red, right green and blue), `HalfColor` the left view's luminance
 /// for red and the right view's channels for the rest, `Gray` luminance for all
 /// (Rec. 709 luma). For grey images all three are the same.
-pub fn anaglyph(left: &Film, right: &Film, glasses: Anaglyph, colors: AnaglyphColors) -> Film {
+pub fn anaglyph(
+    left: &Film,
+    right: &Film,
+    glasses: Anaglyph,
+    colors: AnaglyphColors,
+) -> Result<Film, super::AllocError> {
     assert_eq!((left.width, left.height), (right.width, right.height));
-    let mut out = Film::new(left.width, left.height, 3);
+    let mut out = super::try_film(left.width, left.height, 3)?;
     let l = left.data.chunks_exact(left.channels);
     let r = right.data.chunks_exact(right.channels);
     for ((dst, lp), rp) in out.data.chunks_exact_mut(3).zip(l).zip(r) {
@@ -71,7 +81,7 @@ pub fn anaglyph(left: &Film, right: &Film, glasses: Anaglyph, colors: AnaglyphCo
             Anaglyph::RedGreen => 0.0,
         };
     }
-    out
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -89,7 +99,7 @@ mod tests {
 
     #[test]
     fn halves_and_gap() {
-        let s = side_by_side(&film(2, 0.25), &film(2, 0.75), 1, &[0.5]);
+        let s = side_by_side(&film(2, 0.25), &film(2, 0.75), 1, &[0.5]).unwrap();
         assert_eq!(s.width, 5);
         assert_eq!(&s.data[..5], &[0.25, 0.25, 0.5, 0.75, 0.75]);
     }
@@ -101,9 +111,9 @@ mod tests {
             AnaglyphColors::HalfColor,
             AnaglyphColors::Gray,
         ] {
-            let a = anaglyph(&film(1, 0.2), &film(1, 0.9), Anaglyph::RedCyan, colors);
+            let a = anaglyph(&film(1, 0.2), &film(1, 0.9), Anaglyph::RedCyan, colors).unwrap();
             assert_eq!(&a.data[..3], &[0.2, 0.9, 0.9]);
-            let a = anaglyph(&film(1, 0.2), &film(1, 0.9), Anaglyph::RedGreen, colors);
+            let a = anaglyph(&film(1, 0.2), &film(1, 0.9), Anaglyph::RedGreen, colors).unwrap();
             assert_eq!(&a.data[..3], &[0.2, 0.9, 0.0]);
         }
     }
@@ -117,11 +127,11 @@ mod tests {
             data: vec![r, g, b],
         };
         let (l, r) = (px(0.8, 0.1, 0.2), px(0.3, 0.6, 0.4));
-        let a = anaglyph(&l, &r, Anaglyph::RedCyan, AnaglyphColors::Color);
+        let a = anaglyph(&l, &r, Anaglyph::RedCyan, AnaglyphColors::Color).unwrap();
         assert_eq!(a.data, vec![0.8, 0.6, 0.4]);
-        let a = anaglyph(&l, &r, Anaglyph::RedCyan, AnaglyphColors::HalfColor);
+        let a = anaglyph(&l, &r, Anaglyph::RedCyan, AnaglyphColors::HalfColor).unwrap();
         assert_eq!(a.data, vec![luma(&l.data), 0.6, 0.4]);
-        let a = anaglyph(&l, &r, Anaglyph::RedGreen, AnaglyphColors::Gray);
+        let a = anaglyph(&l, &r, Anaglyph::RedGreen, AnaglyphColors::Gray).unwrap();
         assert_eq!(a.data, vec![luma(&l.data), luma(&r.data), 0.0]);
     }
 }

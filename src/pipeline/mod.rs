@@ -33,19 +33,18 @@ use rayon::prelude::*;
 use serde_json::json;
 
 use crate::error::Error;
-use crate::output::animation::{self, Sequence};
+use crate::output::animation;
 use crate::output::display::{to_display, DisplayKind, Window};
 use crate::output::manifest::{
     self, FileRecord, FrameRecord, ManifestHead, ManifestStatus, ViewRecord,
 };
-use crate::output::write::remove_stale_temporaries;
 use crate::output::{encode, frame_path, stereo, write_atomic, Eye};
 use crate::plan::{Plan, RunOptions};
 use crate::render::{Film, ImageKind, RenderView, Resources, View};
 use crate::sample::Normalize;
 use crate::scene::{AnaglyphColors, Format, Layout, Scene};
 use crate::views::{frames_per_batch, ViewKey};
-use crate::volume::{Limits, Stats, Volume, VolumeHeader};
+use crate::volume::{confine, Limits, Stats, Volume, VolumeHeader, VolumeIdentity};
 
 /// Reports progress in units of finished (pass, frame) images.
 pub trait Progress: Sync {
@@ -93,35 +92,114 @@ pub struct Summary {
 }
 
 /// Renders `scene` and writes its images, their manifest records, the merged
-/// manifest and, once the sequence is complete, its animations.
+/// manifest and, once the sequence is complete, its animations. A run that fails
+/// removes the folders it created if they are still empty (no stray folder).
 pub fn render(
     scene: &Scene,
     opts: &RunOptions,
     limits: &Limits,
     progress: &dyn Progress,
 ) -> Result<Summary, Error> {
+    let out = opts.out.clone().unwrap_or_else(|| scene.image.out.clone());
+    let created = resume::missing_folders(&out);
+    let result = render_run(scene, opts, limits, progress);
+    if result.is_err() {
+        resume::remove_empty_folders(&created);
+    }
+    result
+}
+
+fn render_run(
+    scene: &Scene,
+    opts: &RunOptions,
+    limits: &Limits,
+    progress: &dyn Progress,
+) -> Result<Summary, Error> {
     let start = Instant::now();
+    let _scope = confine_run(scene, opts)?;
     let header = scene.volume.source.header()?;
     let plan = Plan::build(scene, &header, opts)?;
-    let digest = manifest::scene_digest(scene, &header, plan.width, plan.height);
-    let done = if opts.resume {
-        completed(scene, &plan, &digest)?
-    } else {
-        HashSet::new()
+    if opts.finish_only && !plan.out.is_dir() {
+        return Err(Error::Plan {
+            scene: scene.path.clone(),
+            message: format!(
+                "--finish-only: the output folder {} does not exist: nothing has been rendered there yet",
+                plan.out.display()
+            ),
+        });
+    }
+    plan.check_memory(scene, limits)?;
+    let mut summary = Summary::default();
+    let layout = manifest::scene_digest(scene, &header, plan.width, plan.height);
+    let previous = manifest::read_manifest(&plan.out)?;
+    if let Some(f) = previous.as_ref().and_then(manifest::manifest_format) {
+        if f != manifest::MANIFEST_FORMAT && opts.resume {
+            summary.notes.push(format!(
+                "{} was written by an older volcast ({f}) whose records do not cover the voxel data: its images are rendered again",
+                plan.out.join(manifest::MANIFEST).display()
+            ));
+        }
+    }
+    // What the voxels are: known from the manifest when the volume's files did not
+    // change, else hashed while they are read. Images count as done only for the
+    // same voxels.
+    let done_for = |digest: &str| -> Result<HashSet<(usize, usize)>, Error> {
+        if opts.finish_only {
+            // nothing is rendered: every image counts as done here; the manifest
+            // says which exist
+            Ok(plan
+                .frame_list
+                .iter()
+                .flat_map(|&k| (0..scene.passes.len()).map(move |p| (p, k)))
+                .collect())
+        } else if opts.resume {
+            completed(scene, &plan, digest)
+        } else {
+            Ok(HashSet::new())
+        }
+    };
+    let mut volume = None;
+    let (identity, digest, done) = match resume::trusted_identity(scene, previous.as_ref())? {
+        Some(recorded) => {
+            let digest = manifest::data_digest(&layout, recorded.data_xxh3.as_deref());
+            let done = done_for(&digest)?;
+            if jobs(scene, &plan, &done).is_empty() {
+                (recorded, digest, done)
+            } else {
+                let (v, now) = scene.volume.source.load_identified(limits)?;
+                volume = Some(v);
+                if now.data_xxh3 == recorded.data_xxh3 {
+                    (now, digest, done)
+                } else {
+                    let digest = manifest::data_digest(&layout, now.data_xxh3.as_deref());
+                    let done = done_for(&digest)?;
+                    (now, digest, done)
+                }
+            }
+        }
+        None => {
+            let (v, now) = scene.volume.source.load_identified(limits)?;
+            volume = Some(v);
+            let digest = manifest::data_digest(&layout, now.data_xxh3.as_deref());
+            let done = done_for(&digest)?;
+            (now, digest, done)
+        }
     };
     let jobs = jobs(scene, &plan, &done);
-    let mut summary = Summary {
-        skipped: done.len(),
-        ..Summary::default()
-    };
+    summary.skipped = if opts.finish_only { 0 } else { done.len() };
     if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
         summary.notes.push(format!(
             "shard {shard} has no frames of {}..{}: nothing to render",
             plan.frames.start, plan.frames.end
         ));
     }
-    if !jobs.is_empty() {
-        let volume = scene.volume.source.load(limits)?;
+    if jobs.is_empty() {
+        drop(volume.take());
+    } else {
+        let volume = match volume.take() {
+            Some(v) => v,
+            None => scene.volume.source.load(limits)?,
+        };
         let norm = value_window(scene, &volume)?;
         let shard = plan.shard.map(|s| s.to_string());
         let prepare = || create_folders(&plan.out);
@@ -164,12 +242,40 @@ pub fn render(
         let s = render_passes(scene, &plan, &volume, norm, &jobs, &emit)?;
         summary = Summary {
             skipped: summary.skipped,
+            notes: std::mem::take(&mut summary.notes),
             ..s
         };
     }
-    finish(scene, &plan, &header, &digest, &mut summary)?;
+    finish(scene, &plan, &header, &identity, &digest, &mut summary)?;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
+}
+
+/// `--confine`: checks the volume's files and the output folder against the folder
+/// of `opts.confine` before anything is read or created, and returns the scope that
+/// checks every volume file again as it is opened (keep it alive while loading).
+pub fn confine_run(scene: &Scene, opts: &RunOptions) -> Result<Option<confine::Scope>, Error> {
+    let Some(dir) = &opts.confine else {
+        return Ok(None);
+    };
+    let root = confine::Root::new(dir)?;
+    confine::check_source(&scene.volume.source, &root)?;
+    confine::check_output(opts.out.as_deref().unwrap_or(&scene.image.out), &root)?;
+    Ok(Some(confine::Scope::enter(&root)))
+}
+
+/// What [`render_films`] checks before it loads the volume: `--confine` (the scope
+/// it returns keeps checking files as they are opened) and the plan's memory
+/// estimate against `limits`.
+fn preflight(
+    scene: &Scene,
+    opts: &RunOptions,
+    limits: &Limits,
+) -> Result<Option<confine::Scope>, Error> {
+    let scope = confine_run(scene, opts)?;
+    let header = scene.volume.source.header()?;
+    Plan::build(scene, &header, opts)?.check_memory(scene, limits)?;
+    Ok(scope)
 }
 
 /// One rendered view, kept in memory.
@@ -197,6 +303,7 @@ pub fn render_films(
     opts: &RunOptions,
     limits: &Limits,
 ) -> Result<(Vec<RenderedView>, Summary), Error> {
+    let _scope = preflight(scene, opts, limits)?;
     let start = Instant::now();
     let volume = scene.volume.source.load(limits)?;
     let (views, mut summary) = render_films_of(scene, &volume, opts)?;

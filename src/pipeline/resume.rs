@@ -1,31 +1,71 @@
-//! Which (pass, frame) images remain to be rendered (`--resume`), and what a run
-//! does once its images are written: merge the manifest, assemble the animations.
+//! Which (pass, frame) images remain to be rendered (`--resume`), what identifies
+//! the voxels they were rendered from, and what a run does once its images are
+//! written: merge the manifest, assemble the animations.
 
 use super::*;
 
-/// How many (pass, frame) images of the plan's frames `--resume` would skip.
-pub fn completed_images(scene: &Scene, header: &VolumeHeader, plan: &Plan) -> Result<usize, Error> {
-    let digest = manifest::scene_digest(scene, header, plan.width, plan.height);
-    Ok(completed(scene, plan, &digest)?.len())
+/// How many (pass, frame) images of the plan's frames `--resume` would skip, when
+/// that can be told without reading the voxels: `None` when the volume's files
+/// changed since the output folder's manifest recorded them (or it recorded none),
+/// since only hashing the data can then tell which images still belong to it.
+pub fn completed_images(
+    scene: &Scene,
+    header: &VolumeHeader,
+    plan: &Plan,
+) -> Result<Option<usize>, Error> {
+    let previous = manifest::read_manifest(&plan.out)?;
+    let Some(identity) = trusted_identity(scene, previous.as_ref())? else {
+        return Ok(None);
+    };
+    let digest = manifest::data_digest(
+        &manifest::scene_digest(scene, header, plan.width, plan.height),
+        identity.data_xxh3.as_deref(),
+    );
+    Ok(Some(completed(scene, plan, &digest)?.len()))
 }
 
-/// The (pass, frame) images of the plan's frames that `--resume` may skip.
+/// The identity of the voxels when it is known without reading them: a synthetic
+/// field's (its scene defines it), or the one `manifest.json` recorded if every file
+/// of the volume still has the recorded size and modification time.
+pub(super) fn trusted_identity(
+    scene: &Scene,
+    previous: Option<&serde_json::Value>,
+) -> Result<Option<VolumeIdentity>, Error> {
+    if scene.volume.source.is_synthetic() {
+        return Ok(Some(VolumeIdentity {
+            data_xxh3: None,
+            files: Vec::new(),
+        }));
+    }
+    let Some(recorded) = previous.and_then(manifest::recorded_identity) else {
+        return Ok(None);
+    };
+    let now = scene.volume.source.stamps()?;
+    Ok((recorded.data_xxh3.is_some() && recorded.files == now).then_some(recorded))
+}
+
+/// The (pass, frame) images of the plan's frames that `--resume` may skip: those
+/// whose record has `digest` and whose files all have the recorded size and
+/// SHA-256 (checked in parallel).
 pub(super) fn completed(
     scene: &Scene,
     plan: &Plan,
     digest: &str,
 ) -> Result<HashSet<(usize, usize)>, Error> {
-    let mut done = HashSet::new();
-    for &k in &plan.frame_list {
-        for (p, pass) in scene.passes.iter().enumerate() {
-            if let Some(r) = manifest::read_record(&plan.out, &pass.name, k)? {
-                if manifest::is_complete(&plan.out, &r, digest) {
-                    done.insert((p, k));
-                }
-            }
-        }
-    }
-    Ok(done)
+    let keys: Vec<(usize, usize)> = plan
+        .frame_list
+        .iter()
+        .flat_map(|&k| (0..scene.passes.len()).map(move |p| (p, k)))
+        .collect();
+    let found: Vec<Option<(usize, usize)>> = keys
+        .par_iter()
+        .map(|&(p, k)| {
+            let r = manifest::read_record(&plan.out, &scene.passes[p].name, k)?;
+            Ok(r.filter(|r| manifest::is_complete(&plan.out, r, digest))
+                .map(|_| (p, k)))
+        })
+        .collect::<Result<_, Error>>()?;
+    Ok(found.into_iter().flatten().collect())
 }
 
 /// The (pass, frame) images to render, frame by frame.
@@ -41,37 +81,69 @@ pub(super) fn jobs(
         .collect()
 }
 
+/// Creates the output folder (following its path as given) and its records folder
+/// (never through a link).
 pub(super) fn create_folders(out: &Path) -> Result<(), Error> {
-    let records = out.join(manifest::RECORDS);
-    std::fs::create_dir_all(&records).map_err(|source| Error::Output {
-        path: records,
+    std::fs::create_dir_all(out).map_err(|source| Error::Output {
+        path: out.to_path_buf(),
         source,
-    })
+    })?;
+    manifest::records_folder(out).map(drop)
 }
 
-/// The end of every run: remove stale temporaries, merge the manifest, and
-/// assemble the animations when the sequence is complete and they are missing,
-/// out of date, or this run wrote frames.
+/// The folders from `out` up that do not exist yet (innermost first), with the
+/// records folder: what a run may create.
+pub(super) fn missing_folders(out: &Path) -> Vec<PathBuf> {
+    let mut missing = Vec::new();
+    let mut p = Some(out);
+    while let Some(dir) = p.filter(|d| !d.as_os_str().is_empty()) {
+        if std::fs::symlink_metadata(dir).is_ok() {
+            break;
+        }
+        missing.push(dir.to_path_buf());
+        p = dir.parent();
+    }
+    if !missing.is_empty() {
+        missing.insert(0, out.join(manifest::RECORDS));
+    }
+    missing
+}
+
+/// Removes those of `folders` (innermost first) that are empty; stops at the first
+/// that is not (a run that failed after writing something keeps it).
+pub(super) fn remove_empty_folders(folders: &[PathBuf]) {
+    for dir in folders {
+        if std::fs::remove_dir(dir).is_err() && dir.exists() {
+            break;
+        }
+    }
+}
+
+/// The end of every run: remove stale temporaries, merge the manifest (written
+/// once, whole), and assemble the animations when the sequence is complete and they
+/// are missing, damaged or out of date: their bytes differ from their record, the
+/// `[animation]` settings changed, or the frames they hold are not the frames now.
 pub(super) fn finish(
     scene: &Scene,
     plan: &Plan,
     header: &VolumeHeader,
+    identity: &VolumeIdentity,
     digest: &str,
     summary: &mut Summary,
 ) -> Result<(), Error> {
     let out = &plan.out;
     // what the previous manifest says about the animations, before it is replaced
-    let previous = std::fs::read(out.join(manifest::MANIFEST))
-        .ok()
-        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
-        .and_then(|v| v.get("animation").and_then(|a| a.get("settings")).cloned());
+    let previous = manifest::read_manifest(out)?;
+    let previous_animation = previous.as_ref().and_then(|v| v.get("animation")).cloned();
     create_folders(out)?;
     let mut removed = 0;
-    for dir in [out.clone(), out.join(manifest::RECORDS)] {
-        removed += remove_stale_temporaries(&dir).map_err(|source| Error::Output {
-            path: dir.clone(),
-            source,
-        })?;
+    for (dir, folder) in [
+        (out.clone(), manifest::out_folder(out)?),
+        (out.join(manifest::RECORDS), manifest::records_folder(out)?),
+    ] {
+        removed += folder
+            .remove_stale_temporaries()
+            .map_err(|source| Error::Output { path: dir, source })?;
     }
     if removed > 0 {
         summary.notes.push(format!(
@@ -88,60 +160,155 @@ pub(super) fn finish(
             .map(|q| animation::ffmpeg_command(out, q, fps))
             .collect()
     };
-    let settings = scene.animation.as_ref().map(|a| {
-        json!({
-            "formats": a.formats.iter().map(|f| f.extension()).collect::<Vec<_>>(),
-            "fps": a.fps,
-            "loop": a.looping,
-        })
-    });
-    let mut head = ManifestHead {
+    let head = ManifestHead {
         scene,
         header,
+        identity,
         digest,
         size: (plan.width, plan.height),
-        extra: json!({ "ffmpeg": &ffmpeg }),
     };
-    let status = manifest::write_manifest(out, &head)?;
+    let folder = manifest::out_folder(out)?;
+    let mut assembled: Vec<animation::Written> = Vec::new();
+    let mut extra = |status: &ManifestStatus, records: &[FrameRecord]| {
+        let mut e = json!({ "ffmpeg": &ffmpeg });
+        if let (Some(anim), true) = (&scene.animation, status.complete()) {
+            let entries = animation_entries(
+                scene,
+                anim,
+                out,
+                &folder,
+                records,
+                previous_animation.as_ref(),
+                &mut assembled,
+            )?;
+            e["animation"] = entries;
+        }
+        Ok(e)
+    };
+    let status = manifest::write_manifest(out, &head, &mut extra)?;
     summary.notes.extend(
         status
             .unreadable
             .iter()
             .map(|u| format!("{u} (that frame counts as missing)")),
     );
-    if let (Some(anim), true) = (&scene.animation, status.complete()) {
-        let missing = sequences.iter().any(|q: &Sequence| {
-            anim.formats
-                .iter()
-                .any(|&f| !q.animation_path(out, f).is_file())
-        });
-        let stale = previous.as_ref() != settings.as_ref();
-        if summary.images > 0 || missing || stale {
-            summary.animations = animation::assemble(out, scene, anim)?;
-        }
-        let files: Vec<serde_json::Value> = sequences
-            .iter()
-            .flat_map(|q| {
-                anim.formats.iter().map(|&f| {
-                    json!({
-                        "file": q.animation_path(out, f).file_name().map(|n| n.to_string_lossy().into_owned()),
-                        "format": f.extension(),
-                        "frames": scene.orbit.frames,
-                        "fps": match f {
-                            crate::scene::AnimationFormat::Gif => 100.0 / animation::gif_delay(anim.fps) as f64,
-                            crate::scene::AnimationFormat::Apng => anim.fps,
-                        },
-                    })
-                })
-            })
-            .collect();
-        head.extra = json!({
-            "ffmpeg": head.extra["ffmpeg"],
-            "animation": { "settings": settings, "files": files },
-        });
-        manifest::write_manifest(out, &head)?;
-    }
+    summary.animations = assembled;
     summary.manifest = Some(status);
     summary.ffmpeg = ffmpeg;
     Ok(())
+}
+
+/// The `animation` entry of the manifest for a complete sequence: the settings and,
+/// per animation file, its size and SHA-256 and the SHA-256 of the frames' hashes it
+/// was made from. Assembles the animations first (into `assembled`) unless every
+/// file already matches such an entry of `previous` for the same settings and
+/// frames.
+fn animation_entries(
+    scene: &Scene,
+    anim: &crate::scene::Animation,
+    out: &Path,
+    folder: &crate::output::write::Folder,
+    records: &[FrameRecord],
+    previous: Option<&serde_json::Value>,
+    assembled: &mut Vec<animation::Written>,
+) -> Result<serde_json::Value, Error> {
+    let settings = json!({
+        "formats": anim.formats.iter().map(|f| f.extension()).collect::<Vec<_>>(),
+        "fps": anim.fps,
+        "loop": anim.looping,
+    });
+    // the SHA-256 of each frame file, by name
+    let frame_hashes: HashMap<&str, &str> = records
+        .iter()
+        .flat_map(|r| r.files.iter().map(|f| (f.name.as_str(), f.sha256.as_str())))
+        .collect();
+    let mut wanted: Vec<(String, crate::scene::AnimationFormat, String)> = Vec::new();
+    for q in animation::sequences(scene) {
+        let names: Vec<String> = (0..scene.orbit.frames)
+            .map(|k| {
+                frame_path(out, &q.pass, k, q.eye, "png")
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default()
+            })
+            .collect();
+        let frames = manifest::digest_of_list(
+            names
+                .iter()
+                .map(|n| frame_hashes.get(n.as_str()).copied().unwrap_or("missing")),
+        );
+        for &f in &anim.formats {
+            let file = q
+                .animation_path(out, f)
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            wanted.push((file, f, frames.clone()));
+        }
+    }
+    let recorded = |file: &str| -> Option<&serde_json::Value> {
+        previous?
+            .get("files")?
+            .as_array()?
+            .iter()
+            .find(|e| e.get("file").and_then(|v| v.as_str()) == Some(file))
+    };
+    let same_settings = previous.and_then(|p| p.get("settings")) == Some(&settings);
+    let made_now = |file: &str, frames: &str| {
+        assembled.iter().any(|w| {
+            w.path
+                .file_name()
+                .is_some_and(|n| n.to_string_lossy() == file)
+                && w.frames_sha256.as_deref() == Some(frames)
+        })
+    };
+    let up_to_date = wanted.iter().all(|(file, _, frames)| {
+        made_now(file, frames)
+            || (same_settings
+                && recorded(file).is_some_and(|e| {
+                    e.get("frames_sha256").and_then(|v| v.as_str()) == Some(frames.as_str())
+                        && match (
+                            e.get("bytes").and_then(|v| v.as_u64()),
+                            e.get("sha256").and_then(|v| v.as_str()),
+                        ) {
+                            (Some(b), Some(h)) => manifest::file_matches(folder, file, b, h),
+                            _ => false,
+                        }
+                }))
+    });
+    if !up_to_date {
+        let mut written = animation::assemble(out, scene, anim)?;
+        for w in &mut written {
+            let name = w
+                .path
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            w.frames_sha256 = wanted
+                .iter()
+                .find(|(file, _, _)| *file == name)
+                .map(|(_, _, frames)| frames.clone());
+        }
+        *assembled = written;
+    }
+    let mut files = Vec::new();
+    for (file, format, frames) in &wanted {
+        let (bytes, sha256) = manifest::hash_file(folder, file).map_err(|source| Error::Read {
+            path: out.join(file),
+            source,
+        })?;
+        files.push(json!({
+            "file": file,
+            "format": format.extension(),
+            "frames": scene.orbit.frames,
+            "fps": match format {
+                crate::scene::AnimationFormat::Gif => 100.0 / animation::gif_delay(anim.fps) as f64,
+                crate::scene::AnimationFormat::Apng => anim.fps,
+            },
+            "bytes": bytes,
+            "sha256": sha256,
+            "frames_sha256": frames,
+        }));
+    }
+    Ok(json!({ "settings": settings, "files": files }))
 }

@@ -23,13 +23,15 @@ pub(super) fn write_frame(
         .eyes
         .iter()
         .map(|e| match format {
-            Format::Nrrd => (e.eye, std::borrow::Cow::Borrowed(e.film)),
-            _ => (
-                e.eye,
-                std::borrow::Cow::Owned(to_display(e.film, display_kind, bg)),
-            ),
+            Format::Nrrd => Ok((e.eye, std::borrow::Cow::Borrowed(e.film))),
+            _ => to_display(e.film, display_kind, bg)
+                .map(|f| (e.eye, std::borrow::Cow::Owned(f)))
+                .map_err(|a| Error::Encode {
+                    path: frame_path(&plan.out, &pass.name, k, e.eye, format.extension()),
+                    message: a.to_string(),
+                }),
         })
-        .collect();
+        .collect::<Result<_, Error>>()?;
     let layout = scene.stereo.map(|s| s.layout);
     let images: Vec<(Eye, std::borrow::Cow<Film>)> = match (layout, stored.as_slice()) {
         (None, _) | (Some(Layout::Pair), _) => stored,
@@ -51,7 +53,11 @@ pub(super) fn write_frame(
                 Layout::CrossEyed => stereo::side_by_side(right, left, st.gap, &fill),
                 Layout::Anaglyph => stereo::anaglyph(left, right, st.anaglyph, colors),
                 Layout::Pair => unreachable!("handled above"),
-            };
+            }
+            .map_err(|a| Error::Encode {
+                path: frame_path(&plan.out, &pass.name, k, Eye::Mono, format.extension()),
+                message: a.to_string(),
+            })?;
             vec![(Eye::Mono, std::borrow::Cow::Owned(combined))]
         }
         _ => unreachable!("stereo frames have two eyes"),

@@ -57,6 +57,7 @@ pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
 }
 
 fn floor_char_boundary(s: &str, mut i: usize) -> usize {
+    i = i.min(s.len());
     while i > 0 && !s.is_char_boundary(i) {
         i -= 1;
     }
@@ -76,8 +77,9 @@ impl fmt::Display for SceneError {
                     writeln!(f, "{}:{line}:{col}: {}", self.path.display(), d.message)?;
                     let src = self.text.lines().nth(line - 1).unwrap_or("");
                     let width = line.to_string().len();
-                    let span_text =
-                        &self.text[span.start.min(self.text.len())..span.end.min(self.text.len())];
+                    let start = floor_char_boundary(&self.text, span.start);
+                    let end = floor_char_boundary(&self.text, span.end).max(start);
+                    let span_text = &self.text[start..end];
                     let first_line_len = span_text
                         .split('\n')
                         .next()
@@ -204,5 +206,18 @@ mod tests {
         let shown = e.to_string();
         assert!(shown.starts_with("s.toml:2:6: bad"), "{shown}");
         assert!(shown.contains("2 | bé = 2"), "{shown}");
+        // spans inside a character or past the end never panic
+        #[allow(clippy::reversed_empty_ranges)]
+        let spans = [7..8, 8..7, 0..1000, 1000..2000];
+        for span in spans {
+            let e = SceneError {
+                diagnostics: vec![Diagnostic {
+                    span: Some(span),
+                    message: "x".into(),
+                }],
+                ..e.clone()
+            };
+            assert!(e.to_string().contains("s.toml:"));
+        }
     }
 }

@@ -433,11 +433,61 @@ pub enum LightKindSpec {
     Point(DVec3),
 }
 
-/// Reads and validates a scene file.
+/// Largest scene file accepted, in bytes (a scene is a few kilobytes; this only
+/// stops a huge or endless file from being read into memory).
+pub const MAX_SCENE_BYTES: u64 = 16 << 20;
+
+/// Reads and validates a scene file. The file is opened without blocking and must be
+/// a regular file of at most [`MAX_SCENE_BYTES`] (a FIFO, a device such as
+/// `/dev/zero` or a directory is refused with a message, never waited on or read).
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| SceneError::whole_file(path, format!("cannot read the scene file: {e}")))?;
+    let text = read_text(path)?;
     parse(&text, path)
+}
+
+/// The text of the scene file at `path` (see [`load`]).
+fn read_text(path: &Path) -> Result<String, SceneError> {
+    use std::io::Read;
+    let fail = |m: String| SceneError::whole_file(path, m);
+    let cannot = |e: std::io::Error| fail(format!("cannot read the scene file: {e}"));
+    let file = crate::volume::mapped::open_nonblocking(path).map_err(cannot)?;
+    let meta = file.metadata().map_err(cannot)?;
+    if !meta.is_file() {
+        return Err(fail(format!(
+            "is {}, not a regular file: a scene is read only from a regular file (a .toml text file)",
+            crate::volume::mapped::file_kind(&meta.file_type())
+        )));
+    }
+    let too_big = |n: u64| {
+        fail(format!(
+            "the scene file is {} bytes; scene files are at most {} MiB (is it really a scene?)",
+            n,
+            MAX_SCENE_BYTES >> 20
+        ))
+    };
+    if meta.len() > MAX_SCENE_BYTES {
+        return Err(too_big(meta.len()));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(MAX_SCENE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(cannot)?;
+    if bytes.len() as u64 > MAX_SCENE_BYTES {
+        return Err(too_big(bytes.len() as u64));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let text = String::from_utf8_lossy(e.as_bytes()).into_owned();
+        // the lossy text has the same bytes up to the first invalid one
+        SceneError {
+            path: path.to_path_buf(),
+            text,
+            diagnostics: vec![Diagnostic {
+                span: Some(at..at + 1),
+                message: "the scene file is not UTF-8 text: a byte here is not valid UTF-8 (TOML files are UTF-8)".into(),
+            }],
+        }
+    })
 }
 
 /// Validates scene text as if it were the file at `path` (relative paths in the

@@ -39,7 +39,8 @@ pub struct VolumeTable {
     pub window: Sp<[f64; 2]>,
     pub crop: Sp<[[i64; 2]; 3]>,
     // raw
-    pub sizes: Sp<Vec<i64>>,
+    // numbers, so that `4e9` is reported as too large rather than as a float
+    pub sizes: Sp<Vec<f64>>,
     #[serde(rename = "type")]
     pub ty: Sp<String>,
     pub endian: Sp<String>,

@@ -190,7 +190,7 @@ impl fmt::Debug for MappedVoxels {
 
 /// Opens `path` for reading without blocking (a FIFO would otherwise wait for a
 /// writer before its type could be checked).
-pub(crate) fn open_for_mapping(path: &Path) -> io::Result<File> {
+pub(crate) fn open_nonblocking(path: &Path) -> io::Result<File> {
     let mut options = std::fs::OpenOptions::new();
     options.read(true);
     #[cfg(unix)]
@@ -201,23 +201,55 @@ pub(crate) fn open_for_mapping(path: &Path) -> io::Result<File> {
     options.open(path)
 }
 
+/// Opens a volume file (header or data) for reading without blocking; inside a
+/// [`confine::Scope`](super::confine::Scope), the opened file must lie in its folder.
+pub(crate) fn open_for_mapping(path: &Path) -> io::Result<File> {
+    let file = open_nonblocking(path)?;
+    super::confine::check_opened(path, &file)?;
+    Ok(file)
+}
+
+/// Opens `path` for reading without blocking and checks, on the opened file, that it
+/// is a regular file (a FIFO, device, socket or directory is refused with a message
+/// naming it; there is no window between the check and the open). `what` names the
+/// file's role in the message ("a NRRD header", "volume data").
+pub(crate) fn open_regular(path: &Path, what: &str) -> Result<(File, Metadata), VolumeError> {
+    let io_err = |source| VolumeError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = open_for_mapping(path).map_err(io_err)?;
+    let meta = file.metadata().map_err(io_err)?;
+    check_regular(path, &meta, what)?;
+    Ok((file, meta))
+}
+
 /// An error unless `meta` (of `path`) describes a regular file.
 pub(crate) fn check_regular_file(path: &Path, meta: &Metadata) -> Result<(), VolumeError> {
+    check_regular(path, meta, "volume data")
+}
+
+/// An error unless `meta` (of `path`, holding `what`) describes a regular file.
+fn check_regular(path: &Path, meta: &Metadata, what: &str) -> Result<(), VolumeError> {
     let ft = meta.file_type();
     if ft.is_file() {
         return Ok(());
     }
-    let what = if ft.is_dir() {
-        "a directory"
-    } else {
-        special_kind(&ft)
-    };
+    let kind = file_kind(&ft);
     Err(VolumeError::Unsupported {
         path: path.to_path_buf(),
-        message: format!(
-            "is {what}, not a regular file: volume data is read only from regular files"
-        ),
+        message: format!("is {kind}, not a regular file: {what} is read only from regular files"),
     })
+}
+
+/// "a directory", "a FIFO (named pipe)", "a character device", ... for a file that is
+/// not regular.
+pub(crate) fn file_kind(ft: &std::fs::FileType) -> &'static str {
+    if ft.is_dir() {
+        "a directory"
+    } else {
+        special_kind(ft)
+    }
 }
 
 #[cfg(unix)]

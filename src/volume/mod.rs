@@ -10,6 +10,7 @@
 //! ([`mapped`]); [`VolumeSource::storage`] tells which before loading. Nothing in this
 //! module knows about cameras or render modes.
 
+pub mod confine;
 pub mod geometry;
 pub mod limits;
 pub mod mapped;
@@ -78,6 +79,27 @@ pub enum VolumeError {
         bytes: Option<u64>,
         /// The limit in force.
         limit: u64,
+    },
+    /// Memory the limit allowed could not be allocated (the machine has less free
+    /// than `--max-memory` assumed).
+    #[error("{}: out of memory: allocating {} for the voxels failed (the machine has less memory free than --max-memory allows: lower it, or free memory)", path.display(), human_bytes(*bytes))]
+    OutOfMemory {
+        /// The file being read.
+        path: PathBuf,
+        /// Bytes of the allocation that failed.
+        bytes: u64,
+    },
+    /// A file outside the folder the run is confined to (`--confine`).
+    #[error("{}: {what} is outside {} (--confine): it resolves to {}", path.display(), root.display(), real.display())]
+    Outside {
+        /// The path as named (in the scene or a header).
+        path: PathBuf,
+        /// What it is ("the volume", "a data file named by x.nhdr", "the output folder").
+        what: String,
+        /// Where it resolves to.
+        real: PathBuf,
+        /// The folder the run is confined to.
+        root: PathBuf,
     },
     /// Parameters of a raw or synthetic source that make no sense.
     #[error("{0}")]
@@ -202,6 +224,50 @@ impl VolumeSource {
         }
     }
 
+    /// Every file a load reads (a NRRD header and each of its data files, or the raw
+    /// file; none for a synthetic field), stamped now (size and modification time;
+    /// reads only the NRRD header).
+    pub fn stamps(&self) -> Result<Vec<FileStamp>, VolumeError> {
+        let files = match self {
+            VolumeSource::Nrrd(path) => nrrd::input_files(path)?,
+            VolumeSource::Raw(spec) => vec![spec.path.clone()],
+            VolumeSource::Synthetic(_) => Vec::new(),
+        };
+        files.iter().map(|p| FileStamp::of(p)).collect()
+    }
+
+    /// [`VolumeSource::load`], also returning the volume's identity: the files, stamped
+    /// before they are read, and the XXH3-128 of the data, computed while it is
+    /// decoded (no extra pass; mapped data is hashed over its mapping, which reads
+    /// every page of the file once).
+    pub fn load_identified(
+        &self,
+        limits: &Limits,
+    ) -> Result<(Volume, VolumeIdentity), VolumeError> {
+        let files = self.stamps()?;
+        let (volume, hash) = match self {
+            VolumeSource::Nrrd(path) => {
+                let (header, data, hash) = nrrd::read_hashed(path, limits)?;
+                let vh = header.volume_header(path)?;
+                (Volume { header: vh, data }, Some(hash))
+            }
+            VolumeSource::Raw(spec) => spec.load_hashed(limits, true)?,
+            VolumeSource::Synthetic(s) => (s.load(limits)?, None),
+        };
+        Ok((
+            volume,
+            VolumeIdentity {
+                data_xxh3: hash.map(|h| format!("{h:032x}")),
+                files,
+            },
+        ))
+    }
+
+    /// True for a synthetic field (no files; its scene defines its voxels).
+    pub fn is_synthetic(&self) -> bool {
+        matches!(self, VolumeSource::Synthetic(_))
+    }
+
     /// A file path this source reads, if any.
     pub fn path(&self) -> Option<&Path> {
         match self {
@@ -210,6 +276,53 @@ impl VolumeSource {
             VolumeSource::Synthetic(_) => None,
         }
     }
+}
+
+/// A file a volume is read from, as it was when read: enough to tell cheaply
+/// whether it changed since (same size and modification time).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct FileStamp {
+    /// The file.
+    pub path: PathBuf,
+    /// Its length in bytes.
+    pub bytes: u64,
+    /// Its modification time, as `seconds.nanoseconds` since the Unix epoch.
+    pub modified: String,
+}
+
+impl FileStamp {
+    /// The stamp of `path` now.
+    pub fn of(path: &Path) -> Result<FileStamp, VolumeError> {
+        let meta = std::fs::metadata(path).map_err(|source| VolumeError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let modified = meta
+            .modified()
+            .ok()
+            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+            .map_or_else(
+                || "unknown".to_string(),
+                |d| format!("{}.{:09}", d.as_secs(), d.subsec_nanos()),
+            );
+        Ok(FileStamp {
+            path: path.to_path_buf(),
+            bytes: meta.len(),
+            modified,
+        })
+    }
+}
+
+/// What the voxels of a loaded volume are: a hash of their bytes as stored (in file
+/// order, after decompression), computed while they are decoded, and the files they
+/// came from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct VolumeIdentity {
+    /// XXH3-128 of the data, as 32 hex digits (`None` for a synthetic field, which
+    /// its scene defines).
+    pub data_xxh3: Option<String>,
+    /// The files read, stamped before they were read.
+    pub files: Vec<FileStamp>,
 }
 
 /// Reads a NRRD file as a 3D volume.

@@ -4,12 +4,11 @@
 //! ([`super::mapped`]); the other byte order is read, with the decoder shared with the
 //! NRRD raw encoding.
 
-use std::fs::File;
 use std::io::{BufReader, Seek, SeekFrom};
 use std::path::PathBuf;
 
 use super::mapped::{self, check_regular_file, is_native_order, open_for_mapping};
-use super::nrrd::{read_elements, ReadError};
+use super::nrrd::{ElementSink, ReadError};
 use super::{
     Geometry, Limits, ReadReason, ScalarType, Storage, Volume, VolumeData, VolumeError,
     VolumeHeader,
@@ -73,9 +72,24 @@ impl RawSpec {
     /// Maps the voxels (data in native byte order, not counted against `limits`), or
     /// reads them (limits checked before any allocation).
     pub fn load(&self, limits: &Limits) -> Result<Volume, VolumeError> {
+        self.load_hashed(limits, false).map(|(v, _)| v)
+    }
+
+    /// [`RawSpec::load`], also returning (when `hash`) the XXH3-128 of the data's bytes
+    /// as stored, computed while they are read (mapped data: over the mapped bytes).
+    pub fn load_hashed(
+        &self,
+        limits: &Limits,
+        hash: bool,
+    ) -> Result<(Volume, Option<u128>), VolumeError> {
         let header = self.header()?;
         if self.is_mappable() {
-            return self.load_mapped(header);
+            let v = self.load_mapped(header)?;
+            let digest = match (&v.data, hash) {
+                (VolumeData::Mapped(m), true) => Some(xxhash_rust::xxh3::xxh3_128(m.bytes())),
+                _ => None,
+            };
+            return Ok((v, digest));
         }
         let (count, _) = limits.check(&self.sizes, self.scalar_type.size())?;
         let start = self.data_start()?;
@@ -83,24 +97,38 @@ impl RawSpec {
             path: self.path.clone(),
             source,
         };
-        let mut r = BufReader::new(File::open(&self.path).map_err(io_err)?);
+        let (file, _) = mapped::open_regular(&self.path, "volume data")?;
+        let mut r = BufReader::new(file);
         r.seek(SeekFrom::Start(start)).map_err(io_err)?;
-        let data = read_elements(&mut r, self.scalar_type, count, self.little_endian).map_err(
-            |e| match e {
-                // The length was checked, so this means the file changed meanwhile.
-                ReadError::Short { bytes } => VolumeError::Data {
-                    path: self.path.clone(),
-                    message: format!(
-                        "file ended after {bytes} bytes of data (did it change while being read?)"
-                    ),
-                },
-                ReadError::Io(source) => VolumeError::Io {
-                    path: self.path.clone(),
-                    source,
-                },
+        let mut sink = ElementSink::new(self.scalar_type, count, self.little_endian);
+        if hash {
+            sink = sink.hashing();
+        }
+        sink.read(&mut r, count).map_err(|e| match e {
+            // The length was checked, so this means the file changed meanwhile.
+            ReadError::Short { bytes } => VolumeError::Data {
+                path: self.path.clone(),
+                message: format!(
+                    "file ended after {bytes} bytes of data (did it change while being read?)"
+                ),
             },
-        )?;
-        Ok(Volume { header, data })
+            ReadError::Io(source) => VolumeError::Io {
+                path: self.path.clone(),
+                source,
+            },
+            ReadError::Memory { bytes } => VolumeError::OutOfMemory {
+                path: self.path.clone(),
+                bytes,
+            },
+        })?;
+        let digest = sink.hash();
+        Ok((
+            Volume {
+                header,
+                data: sink.finish(),
+            },
+            digest,
+        ))
     }
 
     /// Maps the data, checking type and length on the opened file.

@@ -40,14 +40,9 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         text: text.to_string(),
         diagnostics: diags,
     };
-    let file: SceneFile = match toml::from_str(text) {
-        Ok(f) => f,
-        Err(e) => {
-            return Err(fail(vec![Diagnostic {
-                span: e.span(),
-                message: with_suggestion(e.message()),
-            }]))
-        }
+    let (file, mut diags, removed) = deserialize_all(text);
+    let Some(file) = file else {
+        return Err(fail(diags));
     };
     let base_dir = path.parent().unwrap_or(Path::new("."));
     let mut r = Resolver {
@@ -75,10 +70,16 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let materials = r.materials(&file.material);
     let transfers = r.transfers(&file.transfer);
     let passes = r.passes(file.render.as_deref(), &materials, &transfers);
-    if !r.diags.is_empty() {
-        let mut d = r.diags;
-        d.sort_by_key(|d| d.span.as_ref().map_or(0, |s| s.start));
-        return Err(fail(d));
+    // "needs `key`" adds nothing when `key` was given but of the wrong type
+    diags.extend(r.diags.into_iter().filter(|d| {
+        !(d.message.contains("needs")
+            && removed
+                .iter()
+                .any(|k| d.message.contains(&format!("`{k}`"))))
+    }));
+    if !diags.is_empty() {
+        diags.sort_by_key(|d| d.span.as_ref().map_or(0, |s| s.start));
+        return Err(fail(diags));
     }
     Ok(Scene {
         path: path.to_path_buf(),
@@ -94,6 +95,98 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         text: text.to_string(),
         warnings: r.warnings,
     })
+}
+
+/// Most problems of the serde stage reported for one file (each costs one more pass
+/// over the parsed document).
+const MAX_SCHEMA_PROBLEMS: usize = 50;
+
+/// Deserializes the scene, collecting every problem of the schema stage (unknown
+/// keys, values of the wrong type) instead of stopping at the first: after each
+/// error, the entry it points at is taken out of the parsed document and the rest is
+/// deserialized again. Returns the scene as written when what is left deserializes
+/// (so the resolver can report its own problems too), the problems found, and the
+/// keys taken out.
+fn deserialize_all(text: &str) -> (Option<SceneFile>, Vec<Diagnostic>, Vec<String>) {
+    use serde::Deserialize as _;
+    let mut doc = match toml::de::DeTable::parse(text) {
+        Ok(d) => d,
+        Err(e) => return (None, vec![schema_diagnostic(&e, text)], Vec::new()),
+    };
+    let mut diags = Vec::new();
+    let mut removed = Vec::new();
+    for _ in 0..MAX_SCHEMA_PROBLEMS {
+        let e = match SceneFile::deserialize(toml::de::Deserializer::from(doc.clone())) {
+            Ok(f) => return (Some(f), diags, removed),
+            Err(e) => e,
+        };
+        // A required key missing only because a bad one was taken out adds nothing.
+        if !diags.is_empty() && e.message().starts_with("missing field") {
+            return (None, diags, removed);
+        }
+        diags.push(schema_diagnostic(&e, text));
+        match e.span().and_then(|span| remove_entry(doc.get_mut(), &span)) {
+            Some(key) => removed.push(key),
+            None => return (None, diags, removed),
+        }
+    }
+    (None, diags, removed)
+}
+
+/// A diagnostic for a TOML or schema error, with a place in the file whenever the
+/// error gives one (else the end of the file, for errors such as an unclosed string
+/// at the end, or its start).
+fn schema_diagnostic(e: &toml::de::Error, text: &str) -> Diagnostic {
+    let message = match e.message() {
+        "missing field `volume`" => "missing [volume] table: every scene needs one, with `path` (a .nrrd/.nhdr or raw file) or `synthetic`".to_string(),
+        m if m.contains("recursion") || m.contains("recurse") => format!(
+            "nesting too deep: arrays, inline tables or dotted keys nest deeper than a TOML reader follows (a scene never needs this) ({m})"
+        ),
+        m => with_suggestion(m),
+    };
+    Diagnostic {
+        span: e.span().or(Some(if text.is_empty() {
+            0..0
+        } else {
+            text.len() - 1..text.len()
+        })),
+        message,
+    }
+}
+
+/// Takes out of `table` (recursively, through tables and arrays of tables) the
+/// entry whose key is at `span`, or the innermost entry whose value contains it.
+/// Returns the key taken out. (The span of a `[table]` value covers only its header,
+/// so tables are searched whatever their span.)
+fn remove_entry(table: &mut toml::de::DeTable<'_>, span: &Range<usize>) -> Option<String> {
+    let contains = |outer: &Range<usize>| outer.start <= span.start && span.end <= outer.end;
+    let mut hit = None;
+    for (k, v) in table.iter_mut() {
+        if k.span() == *span {
+            hit = Some(k.clone());
+            break;
+        }
+        let value_span = v.span();
+        let inner = match v.get_mut() {
+            toml::de::DeValue::Table(t) => remove_entry(t, span),
+            toml::de::DeValue::Array(a) => a.iter_mut().find_map(|x| match x.get_mut() {
+                toml::de::DeValue::Table(t) => remove_entry(t, span),
+                _ => None,
+            }),
+            _ => None,
+        };
+        if inner.is_some() {
+            return inner;
+        }
+        if contains(&value_span) {
+            hit = Some(k.clone());
+            break;
+        }
+    }
+    // keys compare by their text, not their span
+    let key = hit?;
+    table.remove(&key)?;
+    Some(key.get_ref().to_string())
 }
 
 impl Resolver<'_> {

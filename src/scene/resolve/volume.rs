@@ -153,17 +153,55 @@ impl Resolver<'_> {
         }))
     }
 
-    pub(super) fn sizes(&mut self, v: &Sp<Vec<i64>>, default: [usize; 3], min: i64) -> [usize; 3] {
+    pub(super) fn sizes(&mut self, v: &Sp<Vec<f64>>, default: [usize; 3], min: i64) -> [usize; 3] {
+        /// Largest size per axis (2^31 voxels).
+        const MAX: f64 = (1u64 << 31) as f64;
         let Some(s) = v else { return default };
-        match s.get_ref().as_slice() {
-            &[a, b, c] if [a, b, c].iter().all(|&x| x >= min && x <= (1 << 31)) => {
-                [a as usize, b as usize, c as usize]
+        let shown = |x: f64| {
+            if x.fract() == 0.0 && x.abs() < 1e15 {
+                format!("{x:.0}")
+            } else {
+                format!("{x}")
             }
-            other => {
-                self.err(
-                    s.span(),
-                    format!("sizes = {other:?}: expected three integers, each at least {min}"),
-                );
+        };
+        let list = || {
+            s.get_ref()
+                .iter()
+                .map(|&x| shown(x))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let problem = match s.get_ref().as_slice() {
+            [_, _, _] => s.get_ref().iter().find_map(|&x| {
+                if !x.is_finite() || x.fract() != 0.0 {
+                    Some(format!("{} is not a whole number of voxels", shown(x)))
+                } else if x > MAX {
+                    Some(format!(
+                        "{} is too large: at most {} voxels per axis",
+                        shown(x),
+                        1u64 << 31
+                    ))
+                } else if x < min as f64 {
+                    Some(format!(
+                        "{} is too small: at least {min} voxels per axis",
+                        shown(x)
+                    ))
+                } else {
+                    None
+                }
+            }),
+            other => Some(format!(
+                "expected three sizes [x, y, z], got {}",
+                other.len()
+            )),
+        };
+        match problem {
+            None => {
+                let a = s.get_ref();
+                [a[0] as usize, a[1] as usize, a[2] as usize]
+            }
+            Some(p) => {
+                self.err(s.span(), format!("sizes = [{}]: {p}", list()));
                 default
             }
         }

@@ -23,6 +23,11 @@ pub(crate) enum ReadError {
     },
     /// The stream failed (including corrupt compressed data and bad hex/ASCII text).
     Io(io::Error),
+    /// The buffer for the elements could not be allocated (`bytes` were asked for).
+    Memory {
+        /// Bytes of the allocation that failed.
+        bytes: u64,
+    },
 }
 
 /// A native-typed buffer filled from a byte stream, never allocating beyond `total`
@@ -31,14 +36,17 @@ pub(crate) struct ElementSink {
     data: VolumeData,
     total: usize,
     little_endian: bool,
+    /// XXH3-128 of the element bytes as stored, fed as they arrive (when asked for).
+    hasher: Option<Box<xxhash_rust::xxh3::Xxh3>>,
 }
 
 fn empty(ty: ScalarType) -> VolumeData {
     VolumeData::from_bytes(ty, &[], true)
 }
 
-/// Appends the elements in `bytes`, growing geometrically but never past `total`.
-fn push<T: Voxel>(v: &mut Vec<T>, bytes: &[u8], le: bool, total: usize) {
+/// Appends the elements in `bytes`, growing geometrically but never past `total`;
+/// an allocation that fails is an error, not an abort.
+fn push<T: Voxel>(v: &mut Vec<T>, bytes: &[u8], le: bool, total: usize) -> Result<(), ReadError> {
     let size = std::mem::size_of::<T>();
     let n = bytes.len() / size;
     if v.capacity() - v.len() < n {
@@ -46,9 +54,13 @@ fn push<T: Voxel>(v: &mut Vec<T>, bytes: &[u8], le: bool, total: usize) {
             .max(MIN_CAPACITY)
             .min(total)
             .max(v.len() + n);
-        v.reserve_exact(want - v.len());
+        v.try_reserve_exact(want - v.len())
+            .map_err(|_| ReadError::Memory {
+                bytes: (want as u64).saturating_mul(size as u64),
+            })?;
     }
     v.extend(bytes.chunks_exact(size).map(|c| T::from_bytes(c, le)));
+    Ok(())
 }
 
 impl ElementSink {
@@ -58,10 +70,26 @@ impl ElementSink {
             data: empty(ty),
             total,
             little_endian,
+            hasher: None,
         }
     }
 
-    fn push(&mut self, bytes: &[u8]) {
+    /// Also hashes the element bytes as they arrive (XXH3-128 of the data as stored,
+    /// in file order), at no extra pass over the data.
+    pub fn hashing(mut self) -> ElementSink {
+        self.hasher = Some(Box::default());
+        self
+    }
+
+    /// The hash of the bytes read so far, when hashing.
+    pub fn hash(&self) -> Option<u128> {
+        self.hasher.as_ref().map(|h| h.digest128())
+    }
+
+    fn push(&mut self, bytes: &[u8]) -> Result<(), ReadError> {
+        if let Some(h) = &mut self.hasher {
+            h.update(bytes);
+        }
         let (le, total) = (self.little_endian, self.total);
         match &mut self.data {
             VolumeData::I8(v) => push(v, bytes, le, total),
@@ -99,7 +127,7 @@ impl ElementSink {
             };
             fill += n;
             let whole = fill / size * size;
-            self.push(&buf[..whole]);
+            self.push(&buf[..whole])?;
             buf.copy_within(whole..fill, 0);
             fill -= whole;
             remaining -= whole;
@@ -114,7 +142,8 @@ impl ElementSink {
     }
 }
 
-/// Reads exactly `count` elements of `ty` from `r` (the shared raw decoder).
+/// Reads exactly `count` elements of `ty` from `r`.
+#[cfg(test)]
 pub(crate) fn read_elements(
     r: &mut impl Read,
     ty: ScalarType,

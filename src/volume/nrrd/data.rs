@@ -240,13 +240,15 @@ pub(super) fn read_data(
     h: &NrrdHeader,
     data_offset: Option<u64>,
     limits: &Limits,
-) -> Result<VolumeData, VolumeError> {
+    hash: bool,
+) -> Result<(VolumeData, Option<u128>), VolumeError> {
     if storage_kind(h).is_ok() {
         let bytes = data_bytes(header_path, h)?;
         let (path, start) = data_file(header_path, h, data_offset, 0);
         let (file, offset) = single_piece(header_path, h, &path).locate_raw(start)?;
         let m = mapped::map(&file, &path, h.scalar_type, offset, bytes)?;
-        return Ok(VolumeData::Mapped(m));
+        let digest = hash.then(|| xxhash_rust::xxh3::xxh3_128(m.bytes()));
+        return Ok((VolumeData::Mapped(m), digest));
     }
     let elem = h.scalar_type.size();
     let (count, _) = limits
@@ -259,6 +261,9 @@ pub(super) fn read_data(
     let per_file = count / files;
     let le = h.endian == Endian::Little || !h.encoding.endian_matters();
     let mut sink = ElementSink::new(h.scalar_type, count, le);
+    if hash {
+        sink = sink.hashing();
+    }
     for index in 0..files {
         let (path, start) = data_file(header_path, h, data_offset, index);
         let piece = Piece {
@@ -271,7 +276,23 @@ pub(super) fn read_data(
         };
         piece.read(start, &mut sink)?;
     }
-    Ok(sink.finish())
+    let digest = sink.hash();
+    Ok((sink.finish(), digest))
+}
+
+/// Every file the data of a checked header is read from (the header's own file for
+/// attached data), in order.
+pub(super) fn data_files(
+    header_path: &Path,
+    h: &NrrdHeader,
+    data_offset: Option<u64>,
+) -> Vec<PathBuf> {
+    let files = usize::try_from(file_count(&h.data_file))
+        .unwrap_or(usize::MAX)
+        .max(1);
+    (0..files)
+        .map(|i| data_file(header_path, h, data_offset, i).0)
+        .collect()
 }
 
 /// One data file's share of the elements.
@@ -316,12 +337,61 @@ impl Piece<'_> {
         }
     }
 
-    fn read(&self, start: u64, sink: &mut ElementSink) -> Result<(), VolumeError> {
-        let file = File::open(self.path).map_err(|e| match self.header.data_file {
+    /// Opens the data file without blocking and refuses anything but a regular file;
+    /// returns it with its length.
+    fn open(&self) -> Result<(File, u64), VolumeError> {
+        let file = open_for_mapping(self.path).map_err(|e| match self.header.data_file {
             DataFile::Attached => self.io_error(e),
             _ => self.error(format_args!("cannot open data file: {e}")),
         })?;
-        let file_len = file.metadata().map_err(|e| self.io_error(e))?.len();
+        let meta = file.metadata().map_err(|e| self.io_error(e))?;
+        check_regular_file(self.path, &meta).map_err(|e| match e {
+            VolumeError::Unsupported { path, message } => VolumeError::Unsupported {
+                path,
+                message: format!("{message}{}", self.context()),
+            },
+            other => other,
+        })?;
+        Ok((file, meta.len()))
+    }
+
+    /// `line skip` and `byte skip` that go beyond the file are errors at once, before
+    /// anything is read (`available`: bytes from where the data section starts).
+    fn check_skips(&self, available: u64) -> Result<(), VolumeError> {
+        let h = self.header;
+        let lines = h.line_skip as u64;
+        if lines > available {
+            return Err(self.error(format_args!(
+                "`line skip: {}` skips more lines than the file has bytes ({available} from where the data starts): the file cannot hold them",
+                h.line_skip
+            )));
+        }
+        let Ok(bytes) = u64::try_from(h.byte_skip) else {
+            return Ok(()); // -1: checked against the data's length by position_raw
+        };
+        let after_lines = available - lines;
+        let (limit, what) = match h.encoding {
+            // DEFLATE expands by at most 1032:1
+            Encoding::Gzip => (
+                after_lines.saturating_mul(1032),
+                "the decompressed gzip data (at most 1032 times its compressed size)",
+            ),
+            // bzip2 can expand far more; its stream length bounds the skip as it is read
+            Encoding::Bzip2 => (u64::MAX, ""),
+            Encoding::Raw | Encoding::Ascii | Encoding::Hex => (after_lines, "the file"),
+        };
+        if bytes > limit {
+            return Err(self.error(format_args!(
+                "`byte skip: {bytes}` goes beyond the end of {what}: {after_lines} bytes are left after {} of line skip",
+                h.line_skip
+            )));
+        }
+        Ok(())
+    }
+
+    fn read(&self, start: u64, sink: &mut ElementSink) -> Result<(), VolumeError> {
+        let (file, file_len) = self.open()?;
+        self.check_skips(file_len.saturating_sub(start))?;
         let mut r = BufReader::new(file);
         r.seek(SeekFrom::Start(start))
             .map_err(|e| self.io_error(e))?;
@@ -364,23 +434,13 @@ impl Piece<'_> {
     /// errors for data that is too short), and returns the file and where the data
     /// starts.
     fn locate_raw(&self, start: u64) -> Result<(File, u64), VolumeError> {
-        let file = open_for_mapping(self.path).map_err(|e| match self.header.data_file {
-            DataFile::Attached => self.io_error(e),
-            _ => self.error(format_args!("cannot open data file: {e}")),
-        })?;
-        let meta = file.metadata().map_err(|e| self.io_error(e))?;
-        check_regular_file(self.path, &meta).map_err(|e| match e {
-            VolumeError::Unsupported { path, message } => VolumeError::Unsupported {
-                path,
-                message: format!("{message}{}", self.context()),
-            },
-            other => other,
-        })?;
+        let (file, file_len) = self.open()?;
+        self.check_skips(file_len.saturating_sub(start))?;
         let mut r = BufReader::new(file);
         r.seek(SeekFrom::Start(start))
             .map_err(|e| self.io_error(e))?;
         self.skip_lines(&mut r)?;
-        self.position_raw(&mut r, meta.len())?;
+        self.position_raw(&mut r, file_len)?;
         let offset = r.stream_position().map_err(|e| self.io_error(e))?;
         Ok((r.into_inner(), offset))
     }
@@ -478,7 +538,15 @@ impl Piece<'_> {
             ReadError::Io(e) if e.kind() == io::ErrorKind::InvalidData || e.kind() == io::ErrorKind::InvalidInput => {
                 self.error(format_args!("{what} data is corrupt: {e}"))
             }
+            ReadError::Io(e) if matches!(what, "gzip" | "bzip2") => self.error(format_args!(
+                "{what} data is corrupt or truncated: {e} (while decoding the {} bytes that sizes × type declare)",
+                self.bytes()
+            )),
             ReadError::Io(e) => self.io_error(e),
+            ReadError::Memory { bytes } => VolumeError::OutOfMemory {
+                path: self.path.to_path_buf(),
+                bytes,
+            },
         })
     }
 

@@ -237,11 +237,16 @@ pub(super) fn parse_fields(path: &Path, raw: &RawHeader) -> Result<Parsed, Volum
         lines.push((name, fl.line));
     }
     b.h.comments = raw.comments.clone();
+    // As teem does, a repeated key replaces the earlier value (found through an
+    // index, so that a header of many pairs parses in linear time).
+    let mut index: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
     for (_, key, value) in &raw.key_values {
-        // As teem does, a repeated key replaces the earlier value.
-        match b.h.key_values.iter_mut().find(|(k, _)| k == key) {
-            Some(kv) => kv.1 = value.clone(),
-            None => b.h.key_values.push((key.clone(), value.clone())),
+        match index.get(key.as_str()) {
+            Some(&i) => b.h.key_values[i].1 = value.clone(),
+            None => {
+                index.insert(key, b.h.key_values.len());
+                b.h.key_values.push((key.clone(), value.clone()));
+            }
         }
     }
     Ok(Parsed { header: b.h, lines })

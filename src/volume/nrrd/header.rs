@@ -1,12 +1,12 @@
 //! Reading the header text: magic, field lines, comments, `key:=value` pairs, the file
 //! names of a `data file: LIST`, and where attached data starts.
 
-use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
 use super::fields::{self, field_index};
 use super::{check, DataFile, NrrdHeader};
+use crate::volume::mapped::open_regular;
 use crate::volume::VolumeError;
 
 /// Longest header line accepted (a hostile file cannot make us buffer more).
@@ -45,10 +45,7 @@ pub(super) struct RawHeader {
 /// Reads, parses and checks the header of `path`; also returns where attached data
 /// starts (`None` for detached data).
 pub(super) fn load_header(path: &Path) -> Result<(NrrdHeader, Option<u64>), VolumeError> {
-    let file = File::open(path).map_err(|source| VolumeError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let (file, _) = open_regular(path, "a NRRD header")?;
     let raw = read_raw_header(path, &mut BufReader::new(file))?;
     let parsed = fields::parse_fields(path, &raw)?;
     check::check_header(path, &parsed)?;

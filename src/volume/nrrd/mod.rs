@@ -40,7 +40,7 @@ use std::path::Path;
 
 use super::{Limits, ScalarType, Storage, VolumeData, VolumeError, VolumeHeader};
 
-pub(crate) use codec::{read_elements, ReadError};
+pub(crate) use codec::{ElementSink, ReadError};
 pub use write::{encode, write_detached};
 
 /// How the data bytes are stored.
@@ -405,6 +405,28 @@ pub fn storage(path: &Path) -> Result<Storage, VolumeError> {
 /// [`crate::volume::mapped`]) and does not count against `limits`.
 pub fn read(path: &Path, limits: &Limits) -> Result<(NrrdHeader, VolumeData), VolumeError> {
     let (header, data_offset) = header::load_header(path)?;
-    let data = data::read_data(path, &header, data_offset, limits)?;
+    let (data, _) = data::read_data(path, &header, data_offset, limits, false)?;
     Ok((header, data))
+}
+
+/// [`read`], also returning the XXH3-128 of the data's bytes as stored (after
+/// decompression, before byte swapping), computed while they are decoded (mapped
+/// data: over the mapped bytes).
+pub fn read_hashed(
+    path: &Path,
+    limits: &Limits,
+) -> Result<(NrrdHeader, VolumeData, u128), VolumeError> {
+    let (header, data_offset) = header::load_header(path)?;
+    let (data, hash) = data::read_data(path, &header, data_offset, limits, true)?;
+    Ok((header, data, hash.unwrap_or_default()))
+}
+
+/// Every file the volume at `path` is read from: the header, and each data file.
+pub fn input_files(path: &Path) -> Result<Vec<std::path::PathBuf>, VolumeError> {
+    let (header, data_offset) = header::load_header(path)?;
+    let mut files = vec![path.to_path_buf()];
+    if header.data_file != DataFile::Attached {
+        files.extend(data::data_files(path, &header, data_offset));
+    }
+    Ok(files)
 }

@@ -1,0 +1,306 @@
+//! The long fuzz run: seeded mutations of the NRRD fixtures (through `volcast info`)
+//! and of the example scenes (through `volcast check`), every case its own process
+//! under a timeout and a memory limit, so that hangs and aborts are caught, not
+//! only panics.
+//!
+//! ```text
+//! cargo build --release
+//! cargo run --release --example fuzz -- [--kind nrrd|scene|both] [--cases N] [--seed S]
+//!     [--jobs J] [--timeout SECONDS] [--memory BYTES] [--volcast PATH] [--out DIR]
+//!     [--dump CASE]
+//! ```
+//!
+//! Defaults: both kinds, 100000 cases each, seed 1, one job per core, 10 s, 1 GiB of
+//! address space per case (and `--max-memory 256M` for volcast itself), the release
+//! binary beside this example, failures saved in `fuzz-failures/`. A case fails if
+//! volcast is killed by a signal (an abort, a crash), runs past the timeout, exits
+//! with a status other than 0 or 1 (101 is a panic, 2 a usage error), or reports an
+//! internal error or running out of memory. Case `i` of a kind and seed is always the
+//! same input, so a failure is reproduced from the three numbers (`--dump CASE`
+//! writes that input to standard output).
+
+#[path = "../tests/fuzz/mutate.rs"]
+mod mutate;
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode, Stdio};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use mutate::{case, corpus, Kind};
+
+struct Options {
+    /// Write case N of the first kind to standard output instead of running.
+    dump: Option<u64>,
+    kinds: Vec<Kind>,
+    cases: u64,
+    seed: u64,
+    jobs: usize,
+    timeout: Duration,
+    memory: u64,
+    volcast: PathBuf,
+    out: PathBuf,
+}
+
+fn usage() -> String {
+    "usage: fuzz [--kind nrrd|scene|both] [--cases N] [--seed S] [--jobs J] [--timeout SECONDS] [--memory BYTES] [--volcast PATH] [--out DIR] [--dump CASE]".into()
+}
+
+fn options() -> Result<Options, String> {
+    let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+    // target/release/examples/fuzz -> target/release/volcast
+    let default_volcast = exe
+        .parent()
+        .and_then(Path::parent)
+        .map(|d| d.join("volcast"))
+        .unwrap_or_else(|| PathBuf::from("volcast"));
+    let mut o = Options {
+        dump: None,
+        kinds: vec![Kind::Nrrd, Kind::Scene],
+        cases: 100_000,
+        seed: 1,
+        jobs: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        timeout: Duration::from_secs(10),
+        memory: 1 << 30,
+        volcast: default_volcast,
+        out: PathBuf::from("fuzz-failures"),
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = || {
+            args.next()
+                .ok_or_else(|| format!("{a} needs a value\n{}", usage()))
+        };
+        let num = |v: String| {
+            v.parse::<u64>()
+                .map_err(|_| format!("{a}: not a number: {v}"))
+        };
+        match a.as_str() {
+            "--kind" => {
+                o.kinds = match value()?.as_str() {
+                    "nrrd" => vec![Kind::Nrrd],
+                    "scene" => vec![Kind::Scene],
+                    "both" => vec![Kind::Nrrd, Kind::Scene],
+                    other => return Err(format!("--kind {other}: nrrd, scene or both")),
+                }
+            }
+            "--cases" => o.cases = num(value()?)?,
+            "--seed" => o.seed = num(value()?)?,
+            "--jobs" => o.jobs = num(value()?)?.max(1) as usize,
+            "--timeout" => o.timeout = Duration::from_secs(num(value()?)?.max(1)),
+            "--memory" => o.memory = num(value()?)?,
+            "--volcast" => o.volcast = PathBuf::from(value()?),
+            "--out" => o.out = PathBuf::from(value()?),
+            "--dump" => o.dump = Some(num(value()?)?),
+            "-h" | "--help" => return Err(usage()),
+            other => return Err(format!("unknown argument {other}\n{}", usage())),
+        }
+    }
+    if !o.volcast.is_file() && o.dump.is_none() {
+        return Err(format!(
+            "{} not found: run `cargo build --release` first, or pass --volcast PATH",
+            o.volcast.display()
+        ));
+    }
+    Ok(o)
+}
+
+/// How one case ended.
+enum Outcome {
+    /// Exit status 0 or 1 with a sensible message.
+    Fine,
+    /// Anything else: why.
+    Failed(String),
+}
+
+/// Runs volcast on one case file in `dir`.
+fn run_case(o: &Options, kind: Kind, dir: &Path, name: &str) -> Outcome {
+    let mut cmd = Command::new(&o.volcast);
+    match kind {
+        Kind::Nrrd => cmd.args(["info", name, "--max-memory", "256M"]),
+        Kind::Scene => cmd.args(["check", name, "--max-memory", "256M", "--out", "out"]),
+    };
+    cmd.current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        let limit = o.memory as libc::rlim_t;
+        let cpu = o.timeout.as_secs() as libc::rlim_t + 5;
+        // SAFETY: setrlimit is async-signal-safe; the closure touches nothing else.
+        unsafe {
+            cmd.pre_exec(move || {
+                let mem = libc::rlimit {
+                    rlim_cur: limit,
+                    rlim_max: limit,
+                };
+                let cpu = libc::rlimit {
+                    rlim_cur: cpu,
+                    rlim_max: cpu,
+                };
+                if libc::setrlimit(libc::RLIMIT_AS, &mem) != 0
+                    || libc::setrlimit(libc::RLIMIT_CPU, &cpu) != 0
+                {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+    }
+    let mut child = match cmd.spawn() {
+        Ok(c) => c,
+        Err(e) => return Outcome::Failed(format!("could not start volcast: {e}")),
+    };
+    let mut stderr = child.stderr.take();
+    let reader = std::thread::spawn(move || {
+        let mut s = Vec::new();
+        if let Some(e) = stderr.as_mut() {
+            let _ = e.take(1 << 20).read_to_end(&mut s);
+        }
+        s
+    });
+    let start = Instant::now();
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(s)) => break Some(s),
+            Ok(None) if start.elapsed() > o.timeout => {
+                let _ = child.kill();
+                let _ = child.wait();
+                break None;
+            }
+            Ok(None) => std::thread::sleep(Duration::from_millis(2)),
+            Err(e) => return Outcome::Failed(format!("waiting for volcast: {e}")),
+        }
+    };
+    let err = String::from_utf8_lossy(&reader.join().unwrap_or_default()).into_owned();
+    let Some(status) = status else {
+        return Outcome::Failed(format!("hang: still running after {:?}", o.timeout));
+    };
+    match status.code() {
+        Some(0) => Outcome::Fine,
+        Some(1) if err.contains("internal error") => Outcome::Failed(format!("panic: {err}")),
+        Some(1) if err.contains("out of memory") => {
+            Outcome::Failed(format!("memory over the limit: {err}"))
+        }
+        Some(1) if err.starts_with("volcast: error: ") => Outcome::Fine,
+        Some(1) => Outcome::Failed(format!("status 1 without a message: {err}")),
+        Some(c) => Outcome::Failed(format!("exit status {c}: {err}")),
+        None => {
+            #[cfg(unix)]
+            {
+                use std::os::unix::process::ExitStatusExt;
+                Outcome::Failed(format!("killed by signal {:?}: {err}", status.signal()))
+            }
+            #[cfg(not(unix))]
+            Outcome::Failed(format!("killed: {err}"))
+        }
+    }
+}
+
+/// Copies the NRRD fixtures (and their data files) into `dir`.
+fn copy_fixtures(root: &Path, dir: &Path) -> std::io::Result<()> {
+    for e in std::fs::read_dir(root.join("tests/fixtures/nrrd"))? {
+        let p = e?.path();
+        if p.is_file() {
+            std::fs::copy(&p, dir.join(p.file_name().unwrap_or_default()))?;
+        }
+    }
+    Ok(())
+}
+
+fn fuzz(o: &Options, kind: Kind) -> u64 {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let seeds = corpus(kind, &root);
+    let next = AtomicU64::new(0);
+    let failures = AtomicU64::new(0);
+    let start = Instant::now();
+    std::thread::scope(|s| {
+        for job in 0..o.jobs {
+            let (seeds, next, failures, root) = (&seeds, &next, &failures, &root);
+            s.spawn(move || {
+                let dir = std::env::temp_dir().join(format!(
+                    "volcast-fuzz-{}-{}-{job}",
+                    std::process::id(),
+                    kind.name()
+                ));
+                let _ = std::fs::remove_dir_all(&dir);
+                std::fs::create_dir_all(&dir).expect("a temporary folder");
+                if kind == Kind::Nrrd {
+                    copy_fixtures(root, &dir).expect("the fixtures");
+                }
+                mutate::prepare_dir(&dir);
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= o.cases {
+                        break;
+                    }
+                    let (name, bytes) = case(kind, seeds, o.seed, i);
+                    let path = dir.join(&name);
+                    if std::fs::write(&path, &bytes).is_err() {
+                        continue;
+                    }
+                    if let Outcome::Failed(why) = run_case(o, kind, &dir, &name) {
+                        failures.fetch_add(1, Ordering::Relaxed);
+                        let keep = o.out.join(format!("{}-{}-{i}", kind.name(), o.seed));
+                        let _ = std::fs::create_dir_all(&keep);
+                        let _ = std::fs::write(keep.join(&name), &bytes);
+                        let _ = std::fs::write(keep.join("why.txt"), &why);
+                        eprintln!(
+                            "{} case {i}: {}",
+                            kind.name(),
+                            why.lines().next().unwrap_or("")
+                        );
+                    }
+                    if (i + 1) % 5000 == 0 {
+                        eprintln!(
+                            "{} {}/{} cases, {} failures, {:.0} s",
+                            kind.name(),
+                            i + 1,
+                            o.cases,
+                            failures.load(Ordering::Relaxed),
+                            start.elapsed().as_secs_f64()
+                        );
+                    }
+                }
+                let _ = std::fs::remove_dir_all(&dir);
+            });
+        }
+    });
+    let failed = failures.load(Ordering::Relaxed);
+    println!(
+        "fuzz {}: {} cases (seed {}), {failed} failures, {:.0} s",
+        kind.name(),
+        o.cases,
+        o.seed,
+        start.elapsed().as_secs_f64()
+    );
+    failed
+}
+
+fn main() -> ExitCode {
+    let o = match options() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::from(2);
+        }
+    };
+    if let Some(i) = o.dump {
+        use std::io::Write;
+        let kind = o.kinds[0];
+        let seeds = corpus(kind, Path::new(env!("CARGO_MANIFEST_DIR")));
+        let (_, bytes) = case(kind, &seeds, o.seed, i);
+        let _ = std::io::stdout().write_all(&bytes);
+        return ExitCode::SUCCESS;
+    }
+    let failed: u64 = o.kinds.clone().into_iter().map(|k| fuzz(&o, k)).sum();
+    if failed == 0 {
+        ExitCode::SUCCESS
+    } else {
+        eprintln!("{failed} failing cases saved in {}", o.out.display());
+        ExitCode::FAILURE
+    }
+}

@@ -1,0 +1,128 @@
+//! A short, seeded fuzz run through the library's entry points (issue 10, item 9):
+//! mutated NRRD fixtures through the reader (header, storage, load, statistics) and
+//! mutated example scenes through the scene parser, the header and the plan (what
+//! `volcast check` does), about two seconds each, every panic caught and reported
+//! with the case that caused it. The long run, every case its own process under a
+//! timeout and a memory limit, is `examples/fuzz.rs` (see the README).
+
+mod mutate;
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use mutate::{case, corpus, Kind};
+use volcast::plan::{Plan, RunOptions};
+use volcast::volume::{Limits, Stats, VolumeSource};
+
+/// How long each kind runs in `cargo test`.
+const BUDGET: Duration = Duration::from_millis(2000);
+/// The seed of the run in `cargo test` (`VOLCAST_FUZZ_SEED` overrides it).
+const SEED: u64 = 10;
+
+fn seed() -> u64 {
+    std::env::var("VOLCAST_FUZZ_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(SEED)
+}
+
+/// What `volcast info` does with a NRRD file, within 64 MiB.
+fn nrrd_case(path: &Path) {
+    let limits = Limits {
+        max_bytes: 64 << 20,
+    };
+    let source = VolumeSource::Nrrd(path.to_path_buf());
+    let _ = source.header();
+    let _ = source.storage();
+    if let Ok(v) = source.load(&limits) {
+        let _ = Stats::of(&v.data);
+    }
+    let _ = volcast::volume::nrrd::read_header(path);
+}
+
+/// What `volcast check` does with a scene file.
+fn scene_case(path: &Path) {
+    let Ok(scene) = volcast::scene::load(path) else {
+        return;
+    };
+    let Ok(header) = scene.volume.source.header() else {
+        return;
+    };
+    let opts = RunOptions::default();
+    if let Ok(plan) = Plan::build(&scene, &header, &opts) {
+        let _ = plan.check_memory(
+            &scene,
+            &Limits {
+                max_bytes: 256 << 20,
+            },
+        );
+        let _ = plan.describe(&scene, &header);
+    }
+}
+
+/// Copies the NRRD fixtures (and their data files) into `dir`.
+fn copy_fixtures(dir: &Path) {
+    let src = crate::util::root().join("tests/fixtures/nrrd");
+    for e in std::fs::read_dir(src).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_file() {
+            std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+        }
+    }
+}
+
+fn run(kind: Kind) {
+    let root = crate::util::root();
+    let seeds = corpus(kind, &root);
+    assert!(seeds.len() > 10, "the corpus of {kind:?} is empty");
+    let tmp = tempfile::tempdir().unwrap();
+    if kind == Kind::Nrrd {
+        copy_fixtures(tmp.path());
+    }
+    mutate::prepare_dir(tmp.path());
+    let seed = seed();
+    let start = Instant::now();
+    let mut n = 0u64;
+    // the panic messages of caught cases are expected noise only on failure
+    while start.elapsed() < BUDGET {
+        let (name, bytes) = case(kind, &seeds, seed, n);
+        let path = tmp.path().join(&name);
+        std::fs::write(&path, &bytes).unwrap();
+        let outcome = catch_unwind(AssertUnwindSafe(|| match kind {
+            Kind::Nrrd => nrrd_case(&path),
+            Kind::Scene => scene_case(&path),
+        }));
+        if let Err(e) = outcome {
+            let msg = e
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            let keep = root.join(format!("fuzz-failures/{}-{seed}-{n}", kind.name()));
+            let _ = std::fs::create_dir_all(&keep);
+            let _ = std::fs::write(keep.join(&name), &bytes);
+            panic!(
+                "{kind:?} case {n} (seed {seed}) panicked: {msg}; input saved in {}",
+                keep.display()
+            );
+        }
+        n += 1;
+    }
+    println!(
+        "fuzz {}: {n} cases in {:?}, no panic",
+        kind.name(),
+        start.elapsed()
+    );
+    assert!(n > 50, "only {n} cases ran");
+}
+
+#[test]
+fn fuzz_nrrd_files() {
+    run(Kind::Nrrd);
+}
+
+#[test]
+fn fuzz_scene_files() {
+    run(Kind::Scene);
+}

@@ -1,0 +1,415 @@
+//! Seeded mutation of NRRD files and scene files, shared by the short fuzz run in
+//! `cargo test` (`tests/fuzz/mod.rs`, in-process, panics caught) and the long run
+//! (`examples/fuzz.rs`, every case its own process under a timeout and a memory
+//! limit). Deterministic: a case is fully defined by (kind, seed, index), so any
+//! failure can be reproduced from the three numbers.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+/// SplitMix64: small, fast, good enough for choosing mutations.
+pub struct Rng(u64);
+
+impl Rng {
+    /// The generator of case `index` of `kind` under `seed`.
+    pub fn for_case(kind: Kind, seed: u64, index: u64) -> Rng {
+        let mut r = Rng(seed ^ (kind as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        r.0 ^= index.wrapping_mul(0xd1b5_4a32_d192_ed03);
+        r.next();
+        r
+    }
+
+    /// The next 64 random bits.
+    pub fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// A number in `0..n` (`n` > 0).
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
+    }
+
+    /// One of `items`.
+    pub fn pick<'a, T>(&mut self, items: &'a [T]) -> &'a T {
+        &items[self.below(items.len())]
+    }
+}
+
+/// What is fuzzed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// NRRD headers and their data (`volcast info`).
+    Nrrd = 1,
+    /// Scene files (`volcast check`).
+    Scene = 2,
+}
+
+impl Kind {
+    /// The name used on the command line and in file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Nrrd => "nrrd",
+            Kind::Scene => "scene",
+        }
+    }
+}
+
+/// Header lines worth splicing into NRRD files: hostile sizes, special files,
+/// skips, every encoding, data file forms.
+pub const NRRD_LINES: &[&str] = &[
+    "sizes: 4000000000 4000000000 4000000000",
+    "sizes: 1100 1100 1100",
+    "sizes: 0 1 1",
+    "dimension: 17",
+    "dimension: 1",
+    "type: double",
+    "type: block",
+    "block size: 18446744073709551615",
+    "encoding: gzip",
+    "encoding: bzip2",
+    "encoding: ascii",
+    "encoding: hex",
+    "encoding: raw",
+    "endian: big",
+    "line skip: 1",
+    "line skip: 18446744073709551615",
+    "byte skip: -1",
+    "byte skip: 9223372036854775807",
+    "data file: /dev/zero",
+    "encoding: gzip\nline skip: 1\ndata file: /dev/zero",
+    "encoding: ascii\nline skip: 3\ndata file: /dev/zero",
+    "data file: fifo",
+    "encoding: gzip\ndata file: fifo",
+    "encoding: hex\nbyte skip: 1000000000000\ndata file: u8_raw.nrrd",
+    "encoding: raw\nline skip: 1000000000\ndata file: u8_raw.nrrd",
+    "data file: .",
+    "data file: LIST",
+    "data file: slice%03d.raw 1 2 1",
+    "data file: x%d 0 1000000000 1 2",
+    "data file: x%d -9223372036854775808 9223372036854775807 1",
+    "space: RAS",
+    "space dimension: 3",
+    "space directions: (1,0,0) (0,1,0) (0,0,1)",
+    "space directions: (0,0,0) (0,0,0) (0,0,0)",
+    "space directions: (1e308,0,0) (0,1e-308,0) (0,0,nan)",
+    "space origin: (1e308,-1e308,0)",
+    "spacings: nan 1e-300 1e300",
+    "kinds: RGBA-color space space",
+    "measurement frame: (1,0,0) (0,1,0) (0,0,1)",
+    "key:=value",
+    "k\\\\ey:=a\\nb",
+    "# comment",
+    "",
+];
+
+/// Lines and tables worth splicing into scene files: huge requests, every mode and
+/// option, bad types, deep nesting.
+pub const SCENE_LINES: &[&str] = &[
+    "[image]\nsize = [32768, 32768]",
+    "[image]\nsize = [0, 1]",
+    "[orbit]\nframes = 1000000",
+    "[orbit]\nframes = 0",
+    "[stereo]\nlayout = \"anaglyph\"",
+    "[stereo]\nmethod = \"parallel\"\nlayout = \"side-by-side\"\ngap = 4096",
+    "[animation]\nformats = [\"gif\", \"apng\"]\nfps = 0.001",
+    "[[render]]\nmode = \"composite\"\ninterpolation = \"cubic\"\nshading = \"phong\"\ngradient = \"sobel\"",
+    "[[render]]\nmode = \"surface\"\niso = 0.5\nintegration = \"exact\"",
+    "[[render]]\nmode = \"xray\"\nstep = 0.0001",
+    "[[render]]\nmode = \"composite\"\ntransfer = \"t\"\npreintegrated = true\n[transfer.t]\nkind = \"2d\"",
+    // [volume] keys (a second [volume] table would only be a duplicate-key error)
+    "sizes = [4e9, 2, 2]",
+    "sizes = [2, 2, 2]",
+    "path = \"/dev/zero\"",
+    "path = \"fifo\"",
+    "path = \"fifo.nrrd\"",
+    "path = \".\"",
+    "format = \"nrrd\"",
+    "format = \"raw\"",
+    "type = \"uint16\"",
+    "endian = \"big\"",
+    "offset = -1",
+    "offset = 9223372036854775807",
+    "crop = [[0, 4294967295], [0, 1], [0, 1]]",
+    "[camera]\nfov = 1e308\nup = [0, 0, 0]",
+    "[camera]\nelevation = 90\nzoom = 1e-300",
+    "[light]\nkind = \"point\"\nposition = [nan, 0, 0]",
+    "windw = [0, 1]",
+    "window = [1, 0]",
+    "step = -1",
+    "a = [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]]",
+    "\"\\uD800\" = 1",
+    "[volume",
+    "",
+];
+
+/// Strings worth putting where quoted strings are (scene paths and names).
+const STRINGS: &[&str] = &[
+    "\"fifo\"",
+    "\"fifo.nrrd\"",
+    "\"fifo.nrrd\"",
+    "\"/dev/zero\"",
+    "\".\"",
+    "\"\"",
+    "\"../../../../../../etc/passwd\"",
+    "\"a.nrrd\"",
+    "\"composite\"",
+    "\"cubic\"",
+    "\"sobel\"",
+    "\"exact\"",
+    "\"anaglyph\"",
+];
+
+/// Numbers worth putting where numbers are.
+const NUMBERS: &[&str] = &[
+    "0",
+    "-1",
+    "1",
+    "2",
+    "255",
+    "65536",
+    "2147483648",
+    "4294967296",
+    "9223372036854775807",
+    "18446744073709551615",
+    "1e308",
+    "-1e308",
+    "1e-320",
+    "nan",
+    "inf",
+    "-0",
+    "0.5",
+];
+
+fn line_starts(b: &[u8]) -> Vec<usize> {
+    std::iter::once(0)
+        .chain(
+            b.iter()
+                .enumerate()
+                .filter(|(_, &c)| c == b'\n')
+                .map(|(i, _)| i + 1),
+        )
+        .filter(|&i| i <= b.len())
+        .collect()
+}
+
+/// One to four random mutations of `input`, splicing lines of `dict`.
+pub fn mutate(rng: &mut Rng, input: &[u8], dict: &[&str]) -> Vec<u8> {
+    let mut b = input.to_vec();
+    for _ in 0..1 + rng.below(4) {
+        let len = b.len();
+        match rng.below(12) {
+            11 => {
+                // a quoted string replaced by another
+                let quotes: Vec<usize> = (0..len).filter(|&i| b[i] == b'"').collect();
+                if quotes.len() >= 2 {
+                    let k = rng.below(quotes.len() - 1);
+                    let (i, j) = (quotes[k], quotes[k + 1]);
+                    let new = rng.pick(STRINGS).as_bytes().to_vec();
+                    b.splice(i..=j, new);
+                }
+            }
+            0 if len > 0 => {
+                let i = rng.below(len);
+                b[i] ^= 1 << rng.below(8);
+            }
+            1 if len > 0 => {
+                let i = rng.below(len);
+                b[i] = rng.next() as u8;
+            }
+            2 if len > 0 => {
+                let i = rng.below(len);
+                let n = (1 + rng.below(16)).min(len - i);
+                b.drain(i..i + n);
+            }
+            3 => {
+                let i = rng.below(len + 1);
+                let n = 1 + rng.below(8);
+                let bytes: Vec<u8> = (0..n).map(|_| rng.next() as u8).collect();
+                b.splice(i..i, bytes);
+            }
+            4 if len > 0 => {
+                let i = rng.below(len);
+                let n = (1 + rng.below(64)).min(len - i);
+                let chunk = b[i..i + n].to_vec();
+                let at = rng.below(b.len() + 1);
+                b.splice(at..at, chunk);
+            }
+            5 => {
+                // a number where a number is
+                let digits: Vec<usize> = (0..len).filter(|&i| b[i].is_ascii_digit()).collect();
+                if !digits.is_empty() {
+                    let mut i = *rng.pick(&digits);
+                    while i > 0 && b[i - 1].is_ascii_digit() {
+                        i -= 1;
+                    }
+                    let mut j = i;
+                    while j < len && (b[j].is_ascii_digit() || b[j] == b'.') {
+                        j += 1;
+                    }
+                    let n = rng.pick(NUMBERS).as_bytes().to_vec();
+                    b.splice(i..j, n);
+                }
+            }
+            6 | 10 => {
+                // a dictionary line at a line start (replacing a line, for 10)
+                let starts = line_starts(&b);
+                let i = *rng.pick(&starts);
+                let mut line = rng.pick(dict).as_bytes().to_vec();
+                line.push(b'\n');
+                let end = if rng.below(2) == 0 {
+                    b[i..]
+                        .iter()
+                        .position(|&c| c == b'\n')
+                        .map_or(b.len(), |p| i + p + 1)
+                } else {
+                    i
+                };
+                b.splice(i..end, line);
+            }
+            7 => {
+                let starts = line_starts(&b);
+                let i = *rng.pick(&starts);
+                let end = b[i..]
+                    .iter()
+                    .position(|&c| c == b'\n')
+                    .map_or(b.len(), |p| i + p + 1);
+                b.drain(i..end);
+            }
+            8 => {
+                let text = b.clone();
+                let mut lines: Vec<&[u8]> = text.split(|&c| c == b'\n').collect();
+                if lines.len() > 1 {
+                    let (x, y) = (rng.below(lines.len()), rng.below(lines.len()));
+                    lines.swap(x, y);
+                    b = lines.join(&b'\n');
+                }
+            }
+            9 if len > 0 => {
+                b.truncate(rng.below(len));
+            }
+            _ => {}
+        }
+    }
+    b
+}
+
+/// Many `key:=value` lines (a header that took 11.7 s to parse at 80,000 lines when
+/// each pair was looked up linearly), inserted after the first line.
+fn bulk_pairs(rng: &mut Rng, b: &mut Vec<u8>) {
+    let n = 20_000 + rng.below(80_000);
+    let at = b
+        .iter()
+        .position(|&c| c == b'\n')
+        .map_or(b.len(), |p| p + 1);
+    let mut lines = Vec::with_capacity(n * 12);
+    for i in 0..n {
+        lines.extend(format!("k{i}:=v\n").bytes());
+    }
+    b.splice(at..at, lines);
+}
+
+/// A case of `kind` made from `input`: [`mutate`] with the kind's dictionary, and,
+/// rarely, a bulk of lines.
+pub fn mutate_kind(rng: &mut Rng, input: &[u8], kind: Kind) -> Vec<u8> {
+    let dict = match kind {
+        Kind::Nrrd => NRRD_LINES,
+        Kind::Scene => SCENE_LINES,
+    };
+    let mut b = mutate(rng, input, dict);
+    if kind == Kind::Nrrd && rng.below(200) == 0 {
+        bulk_pairs(rng, &mut b);
+    }
+    b
+}
+
+/// Creates what the dictionaries name besides the corpus (FIFOs called `fifo` and
+/// `fifo.nrrd`) in the folder cases are written to.
+pub fn prepare_dir(dir: &Path) {
+    #[cfg(unix)]
+    for name in ["fifo", "fifo.nrrd"] {
+        let fifo = dir.join(name);
+        if !fifo.exists() {
+            let _ = std::process::Command::new("mkfifo").arg(&fifo).status();
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = dir;
+}
+
+/// A corpus entry: its file name (the extension matters) and bytes.
+pub struct Seed {
+    /// File name.
+    pub name: String,
+    /// Contents.
+    pub bytes: Vec<u8>,
+}
+
+/// The starting files of `kind`, from the project at `root`: the NRRD fixtures and
+/// bad headers, or the example scenes (their volume paths made absolute) and a few
+/// synthetic scenes.
+pub fn corpus(kind: Kind, root: &Path) -> Vec<Seed> {
+    let mut seeds = Vec::new();
+    let read_dir = |dir: PathBuf, exts: &[&str]| -> Vec<Seed> {
+        let mut v: Vec<Seed> = std::fs::read_dir(&dir)
+            .map(|rd| {
+                rd.filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| p.extension().is_some_and(|e| exts.iter().any(|x| e == *x)))
+                    .filter_map(|p| {
+                        Some(Seed {
+                            name: p.file_name()?.to_string_lossy().into_owned(),
+                            bytes: std::fs::read(&p).ok()?,
+                        })
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        v.sort_by(|a, b| a.name.cmp(&b.name));
+        v
+    };
+    match kind {
+        Kind::Nrrd => {
+            seeds.extend(read_dir(
+                root.join("tests/fixtures/nrrd"),
+                &["nrrd", "nhdr"],
+            ));
+            seeds.extend(read_dir(root.join("tests/bad/nrrd"), &["nrrd", "nhdr"]));
+        }
+        Kind::Scene => {
+            let data = root.join("data");
+            for mut s in read_dir(root.join("scenes"), &["toml"]) {
+                let text = String::from_utf8_lossy(&s.bytes)
+                    .replace("\"../data/", &format!("\"{}/", data.display()));
+                s.bytes = text.into_bytes();
+                seeds.push(s);
+            }
+            for (i, text) in [
+                "[volume]\nsynthetic = \"ball\"\nsizes = [8, 8, 8]\n[[render]]\nmode = \"mip\"\n",
+                "[volume]\nsynthetic = \"gaussian\"\nsigma = 0.3\n[orbit]\nframes = 12\n[stereo]\nangle = 30\n[animation]\nformats = [\"gif\"]\n[[render]]\nmode = \"surface\"\nmaterial = \"gold\"\n",
+                "[volume]\nsynthetic = \"marschner-lobb\"\nsizes = [16, 16, 16]\ncrop = [[0, 7], [0, 7], [0, 7]]\n[camera]\nprojection = \"orthographic\"\n[[render]]\nmode = \"composite\"\ntransfer = \"edges\"\n[transfer.edges]\nkind = \"2d\"\ngradient_max = 0.5\n[[transfer.edges.widget]]\nshape = \"gaussian\"\nvalue = [0.2, 0.6]\ngradient = [0.1, 0.5]\ncolor = [1.0, 0.6, 0.2]\nalpha = 0.6\n",
+            ]
+            .iter()
+            .enumerate()
+            {
+                seeds.push(Seed {
+                    name: format!("synthetic{i}.toml"),
+                    bytes: text.as_bytes().to_vec(),
+                });
+            }
+        }
+    }
+    seeds
+}
+
+/// Case `index` of `kind` under `seed`: the file name to write it as, and its bytes.
+pub fn case(kind: Kind, seeds: &[Seed], seed: u64, index: u64) -> (String, Vec<u8>) {
+    let mut rng = Rng::for_case(kind, seed, index);
+    let s = rng.pick(seeds);
+    let ext = Path::new(&s.name)
+        .extension()
+        .map_or(String::new(), |e| e.to_string_lossy().into_owned());
+    (format!("case.{ext}"), mutate_kind(&mut rng, &s.bytes, kind))
+}

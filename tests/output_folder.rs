@@ -1,0 +1,141 @@
+//! A shared output folder where someone else planted symbolic links (issue 10,
+//! item 1): volcast never writes through a link, at a temporary name, at a final
+//! name or at `manifest.d`, and a link at `manifest.d` or `manifest.json` is an error.
+
+#![cfg(unix)]
+
+use std::os::unix::fs::symlink;
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+use crate::util::volcast;
+
+const SCENE: &str = "[volume]\nsynthetic = \"ball\"\nsizes = [8, 8, 8]\n\
+    [orbit]\nframes = 3\n[image]\nsize = [12, 10]\n[[render]]\nmode = \"mip\"\n";
+
+fn setup() -> (tempfile::TempDir, std::path::PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(tmp.path().join("s.toml"), SCENE).unwrap();
+    let victim = tmp.path().join("victim.txt");
+    std::fs::write(&victim, b"precious").unwrap();
+    (tmp, victim)
+}
+
+fn host() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().to_string())
+        .unwrap_or_default()
+}
+
+#[test]
+fn links_at_final_names_are_replaced_not_followed() {
+    let (tmp, victim) = setup();
+    let dir = tmp.path();
+    let out = dir.join("out");
+    std::fs::create_dir(&out).unwrap();
+    for name in ["mip_0000.png", "mip_0001.png", "mip.gif"] {
+        symlink(&victim, out.join(name)).unwrap();
+    }
+    let o = volcast(dir, &["render", "s.toml", "--out", "out", "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+    for name in ["mip_0000.png", "mip_0001.png"] {
+        let meta = std::fs::symlink_metadata(out.join(name)).unwrap();
+        assert!(meta.is_file(), "{name} is a regular file now");
+    }
+}
+
+#[test]
+fn links_at_the_old_temporary_names_are_never_opened() {
+    let (tmp, victim) = setup();
+    let dir = tmp.path();
+    let out = dir.join("out");
+    std::fs::create_dir_all(out.join("manifest.d")).unwrap();
+    // The temporary names of earlier versions were predictable from the process ID:
+    // plant links at those of the process as soon as it exists.
+    let child = Command::new(env!("CARGO_BIN_EXE_volcast"))
+        .args(["render", "s.toml", "--out", "out", "--quiet"])
+        .current_dir(dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let tag = format!("{}@{}", child.id(), host());
+    for k in 0..3 {
+        let _ = symlink(&victim, out.join(format!(".mip_{k:04}.png.{tag}.tmp")));
+        let _ = symlink(
+            &victim,
+            out.join(format!("manifest.d/.mip_{k:04}.json.{tag}.tmp")),
+        );
+    }
+    let _ = symlink(&victim, out.join(format!(".manifest.json.{tag}.tmp")));
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+    for k in 0..3 {
+        let p = out.join(format!("mip_{k:04}.png"));
+        assert!(std::fs::symlink_metadata(&p).unwrap().is_file(), "{p:?}");
+    }
+}
+
+fn refused(dir: &Path, what: &str) -> String {
+    let o = volcast(dir, &["render", "s.toml", "--out", "out", "--quiet"]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(1), "{what}: {err}");
+    assert!(err.contains("is a symbolic link"), "{what}: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    err
+}
+
+#[test]
+fn a_link_at_manifest_d_or_manifest_json_is_an_error() {
+    let (tmp, victim) = setup();
+    let dir = tmp.path();
+    let out = dir.join("out");
+    std::fs::create_dir(&out).unwrap();
+    let elsewhere = dir.join("elsewhere");
+    std::fs::create_dir(&elsewhere).unwrap();
+    symlink(&elsewhere, out.join("manifest.d")).unwrap();
+    let err = refused(dir, "manifest.d");
+    assert!(err.contains("manifest.d"), "{err}");
+    assert_eq!(
+        std::fs::read_dir(&elsewhere).unwrap().count(),
+        0,
+        "nothing was written through the link"
+    );
+    // a link to a file there is refused alike
+    std::fs::remove_file(out.join("manifest.d")).unwrap();
+    symlink(&victim, out.join("manifest.d")).unwrap();
+    refused(dir, "manifest.d to a file");
+    std::fs::remove_file(out.join("manifest.d")).unwrap();
+
+    symlink(&victim, out.join("manifest.json")).unwrap();
+    let err = refused(dir, "manifest.json");
+    assert!(err.contains("manifest.json"), "{err}");
+    assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+}
+
+#[test]
+fn a_planted_record_link_is_not_read() {
+    let (tmp, _) = setup();
+    let dir = tmp.path();
+    let o = volcast(dir, &["render", "s.toml", "--out", "out", "--quiet"]);
+    assert!(o.status.success());
+    // a record replaced by a link to a FIFO would block a reader that follows it
+    let out = dir.join("out");
+    let fifo = dir.join("fifo");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    std::fs::remove_file(out.join("manifest.d/mip_0001.json")).unwrap();
+    symlink(&fifo, out.join("manifest.d/mip_0001.json")).unwrap();
+    let o = volcast(dir, &["render", "s.toml", "--out", "out", "--resume"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("mip_0001.json") && err.contains("is a symbolic link"),
+        "{err}"
+    );
+}
