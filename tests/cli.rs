@@ -222,6 +222,8 @@ fn bench_speed_quick_measures_every_mode() {
             "--quick",
             "--threads",
             "2",
+            "--repeats",
+            "2",
             "--out",
             tmp.path().to_str().unwrap(),
         ],
@@ -235,6 +237,11 @@ fn bench_speed_quick_measures_every_mode() {
         md.contains("ct_engine") && md.contains("blobs 64^3"),
         "{md}"
     );
+    assert!(
+        md.contains("--repeats 2")
+            && md.contains("median of 2 runs (the thread counts interleaved)"),
+        "{md}"
+    );
     let csv = std::fs::read_to_string(tmp.path().join("speed.csv")).unwrap();
     // a header and 2 volumes x 8 modes x 2 thread counts
     assert_eq!(csv.lines().count(), 1 + 2 * 8 * 2, "{csv}");
@@ -245,5 +252,12 @@ fn bench_speed_quick_measures_every_mode() {
     for row in json["rows"].as_array().unwrap() {
         let skipped = row["skipped"].as_f64().unwrap();
         assert!((0.0..1.0).contains(&skipped), "{row}");
+    }
+    // one and two threads of each case, in that order
+    let rows = json["rows"].as_array().unwrap();
+    for pair in rows.chunks(2) {
+        assert_eq!(pair[0]["threads"], 1, "{pair:?}");
+        assert_eq!(pair[1]["threads"], 2, "{pair:?}");
+        assert_eq!(pair[0]["mode"], pair[1]["mode"]);
     }
 }

@@ -51,7 +51,7 @@ impl SpeedOptions {
             quick,
             size: if quick { 64 } else { 512 },
             frames: if quick { 6 } else { 5 },
-            repeats: if quick { 1 } else { 3 },
+            repeats: if quick { 1 } else { 5 },
             threads: counts,
             real_volume: find_real_volume(),
         }
@@ -181,16 +181,16 @@ pub fn speed(
         )?;
         let volume = first.volume.source.load(&Limits::default())?;
         for mode in MODES {
-            let mut one_thread = None;
-            for &threads in &opts.threads {
-                let row = case(opts, name, table, mode, threads, &volume)?;
-                let base = *one_thread.get_or_insert(row.ms_per_frame);
+            let cases = case(opts, name, table, mode, &volume)?;
+            let base = cases[0].ms_per_frame;
+            for row in cases {
                 let row = SpeedRow {
                     speedup: base / row.ms_per_frame,
                     ..row
                 };
                 progress(&format!(
-                    "{name} {mode} {threads} thread(s): {} ms/frame, {} M samples/s",
+                    "{name} {mode} {} thread(s): {} ms/frame, {} M samples/s",
+                    row.threads,
                     sig(row.ms_per_frame),
                     sig(row.msamples_taken_per_s)
                 ));
@@ -210,31 +210,39 @@ pub fn speed(
     })
 }
 
-/// One case: the median over repeats of T(1 frame) and T(F frames).
+/// One (volume, mode): for each thread count of `opts.threads`, the median over
+/// repeats of T(1 frame) and T(F frames). The thread counts take turns within each
+/// repeat (interleaved), so that a slow moment of a shared machine falls on all of
+/// them rather than on one. Peak memory is the case's, over all thread counts.
 fn case(
     opts: &SpeedOptions,
     name: &str,
     table: &str,
     mode: &str,
-    threads: usize,
     volume: &Volume,
-) -> Result<SpeedRow, BenchError> {
+) -> Result<Vec<SpeedRow>, BenchError> {
     let scene = crate::scene::parse(
         &scene_text(table, mode, opts.size, opts.frames),
         Path::new("speed.toml"),
     )?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| BenchError::Plot(format!("starting {threads} worker threads: {e}")))?;
-    let run = |frames: usize| -> Result<(f64, u64, u64), BenchError> {
+    let pools = opts
+        .threads
+        .iter()
+        .map(|&threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| BenchError::Plot(format!("starting {threads} worker threads: {e}")))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let run = |t: usize, frames: usize| -> Result<(f64, u64, u64), BenchError> {
         let opts = RunOptions {
             frames: Some(0..frames),
-            threads: Some(threads),
+            threads: Some(opts.threads[t]),
             ..RunOptions::default()
         };
         let t0 = Instant::now();
-        let (_, summary) = pool.install(|| render_films_of(&scene, volume, &opts))?;
+        let (_, summary) = pools[t].install(|| render_films_of(&scene, volume, &opts))?;
         Ok((
             t0.elapsed().as_secs_f64(),
             summary.samples,
@@ -242,41 +250,49 @@ fn case(
         ))
     };
     reset_peak_memory();
-    let (mut per_frame, mut setup) = (Vec::new(), Vec::new());
-    let (mut taken, mut nominal) = (0, 0);
+    let n = opts.threads.len();
+    let (mut per_frame, mut setup) = (vec![Vec::new(); n], vec![Vec::new(); n]);
+    let (mut taken, mut nominal) = (vec![0; n], vec![0; n]);
     for _ in 0..opts.repeats.max(1) {
-        let (t1, s1, n1) = run(1)?;
-        let (tf, sf, nf) = run(opts.frames)?;
-        // a run of F frames faster than one of 1 (noise, at tiny sizes) has no
-        // measurable frame time: NaN, shown as such
-        let frame = if tf > t1 {
-            (tf - t1) / (opts.frames - 1) as f64
-        } else {
-            f64::NAN
-        };
-        per_frame.push(frame);
-        setup.push((t1 - frame).max(0.0));
-        taken = sf - s1;
-        nominal = nf - n1;
+        for t in 0..n {
+            let (t1, s1, n1) = run(t, 1)?;
+            let (tf, sf, nf) = run(t, opts.frames)?;
+            // a run of F frames faster than one of 1 (noise, at tiny sizes) has no
+            // measurable frame time: NaN, shown as such
+            let frame = if tf > t1 {
+                (tf - t1) / (opts.frames - 1) as f64
+            } else {
+                f64::NAN
+            };
+            per_frame[t].push(frame);
+            setup[t].push((t1 - frame).max(0.0));
+            taken[t] = sf - s1;
+            nominal[t] = nf - n1;
+        }
     }
-    let frame = median(&mut per_frame);
-    let frame_time = frame * (opts.frames - 1) as f64;
-    Ok(SpeedRow {
-        volume: name.to_string(),
-        mode: mode.to_string(),
-        threads,
-        ms_per_frame: frame * 1e3,
-        setup_ms: median(&mut setup) * 1e3,
-        msamples_taken_per_s: taken as f64 / frame_time / 1e6,
-        msamples_nominal_per_s: nominal as f64 / frame_time / 1e6,
-        skipped: if nominal > 0 {
-            1.0 - taken as f64 / nominal as f64
-        } else {
-            0.0
-        },
-        peak_mib: peak_memory().unwrap_or(f64::NAN),
-        speedup: 1.0,
-    })
+    let peak = peak_memory().unwrap_or(f64::NAN);
+    Ok((0..n)
+        .map(|t| {
+            let frame = median(&mut per_frame[t]);
+            let frame_time = frame * (opts.frames - 1) as f64;
+            SpeedRow {
+                volume: name.to_string(),
+                mode: mode.to_string(),
+                threads: opts.threads[t],
+                ms_per_frame: frame * 1e3,
+                setup_ms: median(&mut setup[t]) * 1e3,
+                msamples_taken_per_s: taken[t] as f64 / frame_time / 1e6,
+                msamples_nominal_per_s: nominal[t] as f64 / frame_time / 1e6,
+                skipped: if nominal[t] > 0 {
+                    1.0 - taken[t] as f64 / nominal[t] as f64
+                } else {
+                    0.0
+                },
+                peak_mib: peak,
+                speedup: 1.0,
+            }
+        })
+        .collect())
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -326,7 +342,7 @@ impl SpeedReport {
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "`{}` on {}, {}: {} x {} images, orthographic turntable (azimuth 20, elevation 15), step 0.5 voxel, trilinear; ms per frame = (T({}) - T(1)) / {}, median of {}.\n",
+            "`{}` on {}, {}: {} x {} images, orthographic turntable (azimuth 20, elevation 15), step 0.5 voxel, trilinear; ms per frame = (T({}) - T(1)) / {}, median of {} runs (the thread counts interleaved); peak memory over the case's thread counts.\n",
             self.command,
             self.machine,
             self.date,

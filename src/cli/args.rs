@@ -54,6 +54,10 @@ pub struct SpeedArgs {
     /// always measured too.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
+    /// Repeats per case, the thread counts taking turns within each (default 5;
+    /// 1 with --quick); the median is reported.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    pub repeats: Option<u16>,
 }
 
 #[derive(Debug, Args)]

@@ -38,10 +38,14 @@ pub fn accuracy(a: AccuracyArgs) -> anyhow::Result<ExitCode> {
 
 /// Runs the speed bench.
 pub fn speed(a: SpeedArgs) -> anyhow::Result<ExitCode> {
-    let opts = bench::SpeedOptions::new(a.quick, a.threads.map(usize::from));
+    let mut opts = bench::SpeedOptions::new(a.quick, a.threads.map(usize::from));
     let mut command = String::from("volcast bench speed");
     if a.quick {
         command += " --quick";
+    }
+    if let Some(r) = a.repeats {
+        opts.repeats = usize::from(r);
+        command += &format!(" --repeats {r}");
     }
     if let Some(t) = a.threads {
         command += &format!(" --threads {t}");
