@@ -60,6 +60,32 @@ pub struct Grid<'a, T: Voxel> {
     sse2: bool,
 }
 
+/// The normalised corners of the cell a ray sampled last (see
+/// [`Grid::trilinear_cached`]); one per ray, or per thread: it is keyed by the
+/// cell, so any order of samples is fine.
+#[derive(Clone, Copy, Debug)]
+pub struct CellCache {
+    /// Flat index of the cell's first voxel (`usize::MAX`: none yet).
+    base: usize,
+    #[cfg(target_arch = "x86_64")]
+    a: std::arch::x86_64::__m128,
+    #[cfg(target_arch = "x86_64")]
+    b: std::arch::x86_64::__m128,
+}
+
+impl Default for CellCache {
+    fn default() -> Self {
+        CellCache {
+            base: usize::MAX,
+            // SAFETY: SSE2 is part of x86-64.
+            #[cfg(target_arch = "x86_64")]
+            a: unsafe { std::arch::x86_64::_mm_setzero_ps() },
+            #[cfg(target_arch = "x86_64")]
+            b: unsafe { std::arch::x86_64::_mm_setzero_ps() },
+        }
+    }
+}
+
 /// A trilinear cell and the position inside it: the flat index of its first voxel,
 /// the offsets to the next voxel along x, y and z, and the fractions.
 #[derive(Clone, Copy, Debug)]
@@ -140,8 +166,22 @@ impl<'a, T: Voxel> Grid<'a, T> {
         #[cfg(target_arch = "x86_64")]
         if self.sse2 {
             // SAFETY: SSE2 is part of x86-64; `sse2` says the indices fit an i32.
-            return unsafe { self.trilinear_sse2(p) };
+            return unsafe { self.trilinear_sse2(p, None) };
         }
+        self.trilinear_scalar(p)
+    }
+
+    /// [`Grid::trilinear`], keeping the last cell's normalised corners in `cache`:
+    /// a sample in the same cell as the one before (about every other sample at a
+    /// half-voxel step) reads no voxel. The same values, so the same bits.
+    #[inline(always)]
+    pub fn trilinear_cached(&self, p: [f64; 3], cache: &mut CellCache) -> f32 {
+        #[cfg(target_arch = "x86_64")]
+        if self.sse2 {
+            // SAFETY: as in `trilinear`.
+            return unsafe { self.trilinear_sse2(p, Some(cache)) };
+        }
+        let _ = cache;
         self.trilinear_scalar(p)
     }
 
@@ -163,7 +203,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// about half the instructions.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    unsafe fn trilinear_sse2(&self, p: [f64; 3]) -> f32 {
+    unsafe fn trilinear_sse2(&self, p: [f64; 3], cache: Option<&mut CellCache>) -> f32 {
         use std::arch::x86_64::*;
         // x and y in one register, z in another: clamp to [0, last], the cell's
         // first voxel is the truncation of min(x, top) (the same as min(trunc(x),
@@ -180,7 +220,15 @@ impl<'a, T: Voxel> Grid<'a, T> {
         let i = _mm_cvtsi128_si32(ixy) as usize;
         let j = _mm_cvtsi128_si32(_mm_shuffle_epi32(ixy, 1)) as usize;
         let base = i + self.sx * j + self.sxy * iz as usize;
-        let (a, b) = self.cell_vectors_sse2(base);
+        let (a, b) = match cache {
+            Some(c) if c.base == base => (c.a, c.b),
+            Some(c) => {
+                let (a, b) = self.cell_vectors_sse2(base);
+                *c = CellCache { base, a, b };
+                (a, b)
+            }
+            None => self.cell_vectors_sse2(base),
+        };
         // x: four lerps at once, lanes (x00, x10, x01, x11)
         let fx = _mm_shuffle_ps(fxy, fxy, 0b00_00_00_00);
         let x = _mm_add_ps(a, _mm_mul_ps(_mm_sub_ps(b, a), fx));

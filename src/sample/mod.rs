@@ -22,7 +22,7 @@ mod reconstruct;
 pub use filter::{
     gradient_volume, gradient_volume_normalised, prefilter_cubic, prefilter_normalised,
 };
-pub use grid::{bits_table, normalisation_table, CellPosition, Gradients, Grid};
+pub use grid::{bits_table, normalisation_table, CellCache, CellPosition, Gradients, Grid};
 pub use reconstruct::{BSpline, Cubic, Nearest, Sampler, Trilinear};
 
 use glam::DVec3;
@@ -119,6 +119,13 @@ pub trait Field: Sync {
     fn sizes(&self) -> [usize; 3];
     /// The reconstructed normalised value at `p` (clamped to the grid).
     fn value(&self, p: DVec3) -> f32;
+    /// [`Field::value`], free to keep what it read for the next sample in `cache`
+    /// (the trilinear filter keeps the last cell's corners); the same bits.
+    #[inline(always)]
+    fn value_cached(&self, p: DVec3, cache: &mut CellCache) -> f32 {
+        let _ = cache;
+        self.value(p)
+    }
     /// The gradient of the normalised value at `p`, in world units
     /// (normalised value per world unit).
     fn gradient(&self, p: DVec3) -> DVec3;
@@ -136,6 +143,10 @@ impl<F: Field + ?Sized> Field for &F {
     #[inline(always)]
     fn value(&self, p: DVec3) -> f32 {
         (**self).value(p)
+    }
+    #[inline(always)]
+    fn value_cached(&self, p: DVec3, cache: &mut CellCache) -> f32 {
+        (**self).value_cached(p, cache)
     }
     fn gradient(&self, p: DVec3) -> DVec3 {
         (**self).gradient(p)

@@ -5,7 +5,7 @@
 use glam::{DMat3, DVec3};
 
 use super::grid::{normalisation_table, Gradients, Grid};
-use super::{Field, GradientMethod, Interpolation, Normalize};
+use super::{CellCache, Field, GradientMethod, Interpolation, Normalize};
 use crate::volume::{Voxel, Voxels};
 
 /// The nearest voxel.
@@ -84,6 +84,11 @@ impl<T: Voxel> Field for Trilinear<'_, T> {
         self.grid.trilinear(p.to_array())
     }
 
+    #[inline(always)]
+    fn value_cached(&self, p: DVec3, cache: &mut CellCache) -> f32 {
+        self.grid.trilinear_cached(p.to_array(), cache)
+    }
+
     fn gradient(&self, p: DVec3) -> DVec3 {
         self.gradients.interpolated(&self.grid, p)
     }
@@ -151,6 +156,10 @@ impl<F: Field + ?Sized> Field for Box<F> {
     #[inline(always)]
     fn value(&self, p: DVec3) -> f32 {
         (**self).value(p)
+    }
+    #[inline(always)]
+    fn value_cached(&self, p: DVec3, cache: &mut CellCache) -> f32 {
+        (**self).value_cached(p, cache)
     }
     fn gradient(&self, p: DVec3) -> DVec3 {
         (**self).gradient(p)

@@ -28,7 +28,7 @@ pub use xray::Xray;
 use super::march::{Lattice, March};
 use super::ray::IndexRay;
 use super::skip::MacroGrid;
-use crate::sample::Field;
+use crate::sample::{CellCache, Field};
 
 /// Samples a ray took, and the samples the plain march would have taken.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -123,11 +123,15 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
 ) -> u64 {
     let n = lattice.len();
     let index = &ray.index;
+    let mut cache = CellCache::default();
     // takes samples `from..to`; the count taken, and whether the consumer stopped
-    let take = |from: usize, to: usize, consumer: &mut C| -> (u64, bool) {
+    let mut take = |from: usize, to: usize, consumer: &mut C| -> (u64, bool) {
         for i in from..to {
             let t = lattice.t(i);
-            if consumer.take(i, t, field.value(index.at(t))).is_break() {
+            if consumer
+                .take(i, t, field.value_cached(index.at(t), &mut cache))
+                .is_break()
+            {
                 return ((i + 1 - from) as u64, true);
             }
         }

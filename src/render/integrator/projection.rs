@@ -11,7 +11,7 @@ use super::xray::Trapezoid;
 use super::{drive, Consumer, Counts, Integrand, PixelRay};
 use crate::render::march::{Lattice, March};
 use crate::render::skip::MacroGrid;
-use crate::sample::Field;
+use crate::sample::{CellCache, Field};
 
 /// Maximum intensity projection.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -156,13 +156,14 @@ fn brightest_first<F: Field>(
     let spans: &[(u32, u32, u32)] =
         unsafe { &*(std::ptr::addr_of!(spans[..count]) as *const [(u32, u32, u32)]) };
     let mut taken = 0u64;
+    let mut cache = CellCache::default();
     let mut sample = |e: &mut Extremum, (a, b, cell): (u32, u32, u32)| {
         if e.skippable(0, grid.range(cell as usize)) {
             return;
         }
         for k in a as usize..b as usize {
             let t = march.t(k);
-            let _ = e.take(k, t, field.value(ray.index.at(t)));
+            let _ = e.take(k, t, field.value_cached(ray.index.at(t), &mut cache));
         }
         taken += u64::from(b - a);
     };
