@@ -8,7 +8,7 @@ VOLCAST=${1:-target/release/volcast}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 render() { "$VOLCAST" render --quiet --frames 0 --size 256x256 --out "$tmp/$1" "scenes/$1.toml"; }
-for s in xray_engine mip_head head_modes minip_ventricles depth_engine golden_engine golden_head composite_engine_bone transfer_2d marschner_lobb; do
+for s in xray_engine mip_head head_modes minip_ventricles depth_engine golden_engine golden_head golden_skull composite_engine_bone transfer_2d marschner_lobb; do
   render "$s"
 done
 cp "$tmp/xray_engine/xray_0000.png"                docs/images/xray.png
@@ -20,6 +20,7 @@ cp "$tmp/head_modes/average_0000.png"              docs/images/average.png
 cp "$tmp/depth_engine/depth_0000.png"              docs/images/depth.png
 cp "$tmp/golden_engine/gold_0000.png"              docs/images/surface.png
 cp "$tmp/golden_head/surface_0000.png"             docs/images/surface_head.png
+cp "$tmp/golden_skull/skull_0000.png"              docs/images/golden_skull.png
 cp "$tmp/composite_engine_bone/bone_0000.png"      docs/images/composite.png
 cp "$tmp/transfer_2d/composite_0000.png"           docs/images/composite_2d.png
 cp "$tmp/marschner_lobb/trilinear_0000.png"        docs/images/ml_trilinear.png

@@ -16,6 +16,27 @@ fn example_scenes() -> Vec<PathBuf> {
     v
 }
 
+/// `volcast render SCENE --out OUT --size SIZE --quiet EXTRA...` in `dir`.
+fn render_at(
+    dir: &Path,
+    scene: &Path,
+    out: &Path,
+    size: &str,
+    extra: &[&str],
+) -> std::process::Output {
+    let mut args = vec![
+        "render",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--size",
+        size,
+        "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    volcast(dir, &args)
+}
+
 fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -61,20 +82,7 @@ fn every_example_scene_renders() {
     for scene in example_scenes() {
         let name = scene.file_stem().unwrap().to_string_lossy().into_owned();
         let out = tmp.path().join(&name);
-        let o = volcast(
-            tmp.path(),
-            &[
-                "render",
-                scene.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--size",
-                "40x32",
-                "--frames",
-                "0",
-                "--quiet",
-            ],
-        );
+        let o = render_at(tmp.path(), &scene, &out, "40x32", &["--frames", "0"]);
         assert!(o.status.success(), "{name}: {}", stderr(&o));
         let text = std::fs::read_to_string(&scene).unwrap();
         let passes = text.matches("[[render]]").count().max(1);
@@ -259,5 +267,62 @@ fn bench_speed_quick_measures_every_mode() {
         assert_eq!(pair[0]["threads"], 1, "{pair:?}");
         assert_eq!(pair[1]["threads"], 2, "{pair:?}");
         assert_eq!(pair[0]["mode"], pair[1]["mode"]);
+    }
+}
+
+/// `scenes/golden_skull.toml` on the shipped CT head: every frame of the turntable shows
+/// the skull filling the frame without being cut at the sides or the top (at most two
+/// edge pixels: the thin head rest), and upright
+/// (the cranium, the heavier part, above the jaw and neck: the covered pixels' centre
+/// lies in the upper half of their bounding box).
+#[test]
+fn golden_skull_fills_the_frame_upright() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = root().join("scenes/golden_skull.toml");
+    let out = tmp.path().join("skull");
+    let o = render_at(tmp.path(), &scene, &out, "64x64", &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let n = 64usize;
+    for k in 0..36 {
+        let path = out.join(format!("skull_{k:04}.png"));
+        let img = image::open(&path)
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+            .to_rgb8();
+        assert_eq!(img.dimensions(), (n as u32, n as u32));
+        // the background is [0.1, 0.1, 0.12]: about (26, 26, 31)
+        let covered = |x: usize, y: usize| {
+            let p = img.get_pixel(x as u32, y as u32).0;
+            (p[0] as i32 - 26).abs() > 12 || (p[2] as i32 - 31).abs() > 12
+        };
+        let (mut x0, mut x1, mut y0, mut y1) = (n, 0, n, 0);
+        let (mut count, mut sum_y) = (0usize, 0usize);
+        for y in 0..n {
+            for x in 0..n {
+                if covered(x, y) {
+                    (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+                    count += 1;
+                    sum_y += y;
+                }
+            }
+        }
+        assert!(count > 0, "frame {k}: nothing drawn");
+        // the thin head rest under the neck may reach the side: a pixel or two
+        let on_edge = (0..n)
+            .filter(|&i| covered(0, i) || covered(n - 1, i) || covered(i, 0))
+            .count();
+        assert!(
+            on_edge <= 2,
+            "frame {k}: cut at the frame's edge ({on_edge} pixels; box x {x0}..{x1}, y {y0}..{y1})"
+        );
+        let extent = (x1 - x0 + 1).max(y1 - y0 + 1);
+        assert!(
+            extent >= n * 6 / 10,
+            "frame {k}: the skull spans {extent} of {n} pixels"
+        );
+        let centre_y = sum_y as f64 / count as f64;
+        assert!(
+            centre_y < (y0 + y1) as f64 / 2.0,
+            "frame {k}: covered pixels centred at row {centre_y:.1} in rows {y0}..{y1}: upside down?"
+        );
     }
 }
