@@ -61,8 +61,8 @@ pub struct Grid<'a, T: Voxel> {
 }
 
 /// The normalised corners of the cell a ray sampled last (see
-/// [`Grid::trilinear_cached`]); one per ray, or per thread: it is keyed by the
-/// cell, so any order of samples is fine.
+/// [`Grid::trilinear_cached`]). It is keyed by the cell only, so any order of
+/// samples is fine, but one cache must serve one grid: keep one per ray.
 #[derive(Clone, Copy, Debug)]
 pub struct CellCache {
     /// Flat index of the cell's first voxel (`usize::MAX`: none yet).

@@ -160,6 +160,7 @@ impl<F: Field + ?Sized> Field for &F {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::volume::Voxels;
     use glam::DMat3;
 
     fn linear_field(n: [usize; 3]) -> Vec<f32> {
@@ -190,6 +191,54 @@ mod tests {
             None,
             DMat3::IDENTITY,
         )
+    }
+
+    /// The cell cache gives the bits of the uncached sample, in any order of samples
+    /// (cells revisited, skipped, alternating), for float32 (with values outside the
+    /// window) and 8-bit voxels.
+    #[test]
+    fn cached_trilinear_samples_are_the_uncached_bits() {
+        let n = [9, 8, 7];
+        let len = n[0] * n[1] * n[2];
+        let f: Vec<f32> = (0..len)
+            .map(|i| ((i * 37 % 101) as f32 - 20.0) / 70.0)
+            .collect();
+        let b: Vec<u8> = (0..len).map(|i| (i * 53 % 256) as u8).collect();
+        let norm = Normalize::new(-0.1, 1.2);
+        let lut_f = normalisation_table::<f32>(norm);
+        let lut_b = normalisation_table::<u8>(norm);
+        let gf = Grid::new(Voxels::from(&f), n, norm, &lut_f);
+        let gb = Grid::new(Voxels::from(&b), n, norm, &lut_b);
+        let mut state = 12345u64;
+        let mut next = |hi: f64| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * hi
+        };
+        let (mut cf, mut cb) = (CellCache::default(), CellCache::default());
+        let mut p = [1.0, 1.0, 1.0];
+        for _ in 0..20_000 {
+            // mostly small steps (same or next cell), sometimes a jump, sometimes
+            // outside the grid (clamped)
+            if next(1.0) < 0.1 {
+                p = [next(11.0) - 1.0, next(10.0) - 1.0, next(9.0) - 1.0];
+            } else {
+                for x in &mut p {
+                    *x += next(0.6) - 0.3;
+                }
+            }
+            assert_eq!(
+                gf.trilinear_cached(p, &mut cf).to_bits(),
+                gf.trilinear(p).to_bits(),
+                "{p:?}"
+            );
+            assert_eq!(
+                gb.trilinear_cached(p, &mut cb).to_bits(),
+                gb.trilinear(p).to_bits(),
+                "{p:?}"
+            );
+        }
     }
 
     #[test]
