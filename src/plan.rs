@@ -25,7 +25,7 @@ use crate::output::Eye;
 use crate::render::pass::GridSource;
 use crate::render::skip::MacroGrid;
 use crate::render::{ImageKind, IndexFrame, RenderPass};
-use crate::scene::{Format, Layout, LightKindSpec, Scene};
+use crate::scene::{Format, Layout, LightKindSpec, Mode, Scene, Units};
 use crate::shade::{Light, LightKind};
 use crate::volume::{human_bytes, VolumeHeader};
 
@@ -451,7 +451,11 @@ impl Plan {
         );
         match scene.volume.window {
             Some([lo, hi]) => {
-                let _ = writeln!(s, "window   [{lo}, {hi}] -> [0, 1]");
+                let units = match scene.volume.units {
+                    Units::Data { .. } => " (units = \"data\": the scene's values are data values)",
+                    Units::Normalised => "",
+                };
+                let _ = writeln!(s, "window   [{lo}, {hi}] -> [0, 1]{units}");
             }
             None => {
                 let _ = writeln!(
@@ -502,7 +506,21 @@ impl Plan {
                 rp.dt,
                 p.interpolation.name()
             );
-            let mut needs = rp.describe(header.sizes);
+            let mut needs = Vec::new();
+            // the value a pass looks for, normalised and, under units = "data", as written
+            let units = scene.volume.units;
+            let both = |t: f64| match units {
+                Units::Data { .. } => format!("{t} (data value {})", units.show(t)),
+                Units::Normalised => format!("{t}"),
+            };
+            match p.mode {
+                Mode::Lmip { threshold } | Mode::Depth { threshold } => {
+                    needs.push(format!("threshold {}", both(threshold)));
+                }
+                Mode::Surface { iso, .. } => needs.push(format!("iso value {}", both(iso))),
+                _ => {}
+            }
+            needs.extend(rp.describe(header.sizes));
             if let Some(sh) = p.mode.shading() {
                 needs.push(format!("material {}", sh.material_name));
             }
@@ -512,7 +530,19 @@ impl Plan {
                     self.preview.0, self.preview.1
                 ));
             } else if let Some([lo, hi]) = p.window {
-                needs.push(format!("grey window [{lo}, {hi}]"));
+                let value_based = matches!(
+                    p.mode,
+                    Mode::Mip | Mode::Minip | Mode::Average | Mode::Lmip { .. }
+                );
+                if value_based && units != Units::Normalised {
+                    needs.push(format!(
+                        "grey window [{lo}, {hi}] (data values [{}, {}])",
+                        units.show(lo),
+                        units.show(hi)
+                    ));
+                } else {
+                    needs.push(format!("grey window [{lo}, {hi}]"));
+                }
             }
             if needs.is_empty() {
                 needs.push("nothing precomputed".into());

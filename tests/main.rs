@@ -21,3 +21,4 @@ mod resume_trust;
 mod skipping;
 mod special_files;
 mod stereo;
+mod units;

@@ -58,9 +58,39 @@ pub struct VolumeSpec {
     pub source: VolumeSource,
     /// Data values mapped linearly to [0, 1]; `None` = the data's finite min..max.
     pub window: Option<[f64; 2]>,
+    /// The units the scene's values were written in (`[volume] units`); they are
+    /// normalised values in the resolved scene either way.
+    pub units: Units,
     /// Voxel index ranges (inclusive) of the sub-volume to render; `None` = all.
     /// Checked against the volume's sizes when the plan is built.
     pub crop: Option<[[usize; 2]; 3]>,
+}
+
+/// The units of a scene's thresholds, iso values, transfer-function knots and the
+/// windows of the value-based passes (`[volume] units`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Units {
+    /// Normalised values: 0 and 1 are the ends of the volume's window.
+    #[default]
+    Normalised,
+    /// The volume's own values (Hounsfield units for CT), converted at resolve time
+    /// to `t = (x - lo) / (hi - lo)` with the volume's window `[lo, hi]`.
+    Data {
+        /// The window's low end.
+        lo: f64,
+        /// The window's high end.
+        hi: f64,
+    },
+}
+
+impl Units {
+    /// A normalised value `t` in the units the scene was written in (for display).
+    pub fn show(self, t: f64) -> f64 {
+        match self {
+            Units::Normalised => t,
+            Units::Data { lo, hi } => lo + t * (hi - lo),
+        }
+    }
 }
 
 /// Perspective or parallel projection.

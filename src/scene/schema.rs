@@ -37,6 +37,7 @@ pub struct VolumeTable {
     pub path: Sp<String>,
     pub format: Sp<String>,
     pub window: Sp<[f64; 2]>,
+    pub units: Sp<String>,
     pub crop: Sp<[[i64; 2]; 3]>,
     // raw
     // numbers, so that `4e9` is reported as too large rather than as a float

@@ -122,7 +122,7 @@ impl Resolver<'_> {
                 Some(c) => c
                     .get_ref()
                     .iter()
-                    .map(|(p, c)| (*p as f32, c.map(|x| x as f32)))
+                    .map(|(p, k)| (self.knot("color", *p, c.span()), k.map(|x| x as f32)))
                     .collect(),
                 None => vec![(0.0, [1.0; 3])],
             };
@@ -136,7 +136,7 @@ impl Resolver<'_> {
             let alpha: Vec<(f32, f32)> = alpha
                 .get_ref()
                 .iter()
-                .map(|(p, a)| (*p as f32, *a as f32))
+                .map(|(p, a)| (self.knot("alpha", *p, alpha.span()), *a as f32))
                 .collect();
             match Transfer1D::new(color, alpha, interpolation) {
                 Ok(tf) => Some(Transfer::OneD(Arc::new(tf))),
@@ -150,6 +150,18 @@ impl Resolver<'_> {
                     None
                 }
             }
+        }
+    }
+
+    /// A position on a transfer function's value axis as written: normalised as it
+    /// is, or a data value under `units = "data"` (converted, and checked to lie in
+    /// the volume window).
+    fn knot(&mut self, key: &str, x: f64, span: Range<usize>) -> f32 {
+        match self.units {
+            Units::Normalised => x as f32,
+            Units::Data { .. } => self
+                .value_at(&format!("{key} knot"), x, span)
+                .unwrap_or(0.0) as f32,
         }
     }
 
@@ -181,7 +193,14 @@ impl Resolver<'_> {
                 }
             }
         };
-        let value = range(self, "value", &v.value, [0.0, 1.0]);
+        let mut value = range(self, "value", &v.value, [0.0, 1.0]);
+        if let (Some(s), Units::Data { .. }) = (&v.value, self.units) {
+            let [a, b] = *s.get_ref();
+            value = [
+                self.knot("value", a, s.span()),
+                self.knot("value", b, s.span()),
+            ];
+        }
         let gradient = range(self, "gradient", &v.gradient, [0.0, f32::MAX]);
         let color = v
             .color
@@ -197,7 +216,7 @@ impl Resolver<'_> {
         if v.value.is_none() {
             self.err(
                 w.span(),
-                "a widget needs `value = [low, high]` (normalised values)",
+                "a widget needs `value = [low, high]` (normalised values, or data values under units = \"data\")",
             );
             return None;
         }

@@ -32,6 +32,8 @@ struct Resolver<'a> {
     diags: Vec<Diagnostic>,
     warnings: Vec<String>,
     base_dir: &'a Path,
+    /// `[volume] units`, once the volume is resolved.
+    units: Units,
 }
 
 pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
@@ -49,6 +51,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         diags: Vec::new(),
         warnings: Vec::new(),
         base_dir,
+        units: Units::Normalised,
     };
     let name = path
         .file_stem()
@@ -283,6 +286,41 @@ impl Resolver<'_> {
                 format!("{key} = [{lo}, {hi}]: expected [low, high] with low < high"),
             );
             None
+        }
+    }
+
+    /// A value of the volume's value axis (a threshold, an iso value, a knot), in the
+    /// scene's units: returned normalised, `(x - lo) / (hi - lo)` in f64 under
+    /// `units = "data"`; it must lie in [0, 1] once normalised (inside the volume
+    /// window). `None` (reported) when it does not.
+    fn value_at(&mut self, key: &str, x: f64, span: Range<usize>) -> Option<f64> {
+        let t = match self.units {
+            Units::Normalised => x,
+            Units::Data { lo, hi } => (x - lo) / (hi - lo),
+        };
+        if x.is_finite() && (0.0..=1.0).contains(&t) {
+            return Some(t);
+        }
+        let expected = match self.units {
+            Units::Normalised => {
+                "a normalised value in [0, 1] (0 = the volume window's low end, 1 = its high end)"
+                    .to_string()
+            }
+            Units::Data { lo, hi } => {
+                format!("a value of the volume in its window [{lo}, {hi}] (units = \"data\")")
+            }
+        };
+        self.err(span, format!("{key} = {x}: expected {expected}"));
+        None
+    }
+
+    /// [`Resolver::value_at`] of an optional key, `default` (normalised) when absent.
+    fn value(&mut self, key: &str, v: &Sp<f64>, default: f64) -> f64 {
+        match v {
+            None => default,
+            Some(s) => self
+                .value_at(key, *s.get_ref(), s.span())
+                .unwrap_or(default),
         }
     }
 

@@ -156,11 +156,19 @@ impl Resolver<'_> {
             ],
             Interpolation::Trilinear,
         );
-        let window = self.window("window", &v.window);
+        let window = self.window("window", &v.window).and_then(|w| {
+            // the grey window of a value-based pass is on the value axis
+            if !matches!(mode_name, "mip" | "minip" | "average" | "lmip")
+                || self.units == Units::Normalised
+            {
+                return Some(w);
+            }
+            let span = v.window.as_ref().map(|s| s.span()).unwrap_or_default();
+            let lo = self.value_at("window[0]", w[0], span.clone())?;
+            let hi = self.value_at("window[1]", w[1], span)?;
+            Some([lo, hi])
+        });
         self.check_method(v, integration, interpolation, jitter);
-        let unit = |x: f64| (0.0..=1.0).contains(&x);
-        const UNIT: &str =
-            "a normalised value in [0, 1] (0 = the volume window's low end, 1 = its high end)";
         let mode = match mode_name {
             "xray" => Mode::Xray {
                 output: self.choice(
@@ -179,13 +187,13 @@ impl Resolver<'_> {
             "minip" => Mode::Minip,
             "average" => Mode::Average,
             "lmip" => Mode::Lmip {
-                threshold: self.number("threshold", &v.threshold, 0.5, unit, UNIT),
+                threshold: self.value("threshold", &v.threshold, 0.5),
             },
             "depth" => Mode::Depth {
-                threshold: self.number("threshold", &v.threshold, 0.5, unit, UNIT),
+                threshold: self.value("threshold", &v.threshold, 0.5),
             },
             "surface" => Mode::Surface {
-                iso: self.number("iso", &v.iso, 0.5, unit, UNIT),
+                iso: self.value("iso", &v.iso, 0.5),
                 shading: self.shading(v, materials, Model::Phong)?,
             },
             _ => {

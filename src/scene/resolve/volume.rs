@@ -48,9 +48,32 @@ impl Resolver<'_> {
                 None
             }
         });
+        let data = self.choice(
+            "units",
+            &v.units,
+            &[("normalised", false), ("data", true)],
+            false,
+        );
+        let units = match (data, v.window.as_ref(), window) {
+            (false, _, _) => Units::Normalised,
+            (true, Some(_), Some([lo, hi])) => Units::Data { lo, hi },
+            // a bad window is reported already
+            (true, Some(_), None) => Units::Normalised,
+            (true, None, _) => {
+                let span = v.units.as_ref().map_or(t.span(), |u| u.span());
+                self.err(
+                    span,
+                    "units = \"data\" needs `window = [lo, hi]` in [volume]: the data values that \
+                     thresholds, iso values and transfer-function knots are measured against",
+                );
+                Units::Normalised
+            }
+        };
+        self.units = units;
         VolumeSpec {
             source,
             window,
+            units,
             crop,
         }
     }
