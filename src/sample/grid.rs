@@ -318,34 +318,16 @@ impl<'a, T: Voxel> Grid<'a, T> {
         // SAFETY: `base` is `i + sx j + sxy k` with each index at most the axis'
         // `top` (n - 2, or 0 on a one-voxel axis, where the step is 0), so
         // `base + dx + dy + dz <= (n0 - 1) + sx (n1 - 1) + sxy (n2 - 1) = len - 1`.
-        let [a, b, c, d, e, f, g, h] = unsafe { self.voxels.corners_unchecked(base, dx, dy, dz) };
-        [
-            self.normalise(a),
-            self.normalise(b),
-            self.normalise(c),
-            self.normalise(d),
-            self.normalise(e),
-            self.normalise(f),
-            self.normalise(g),
-            self.normalise(h),
-        ]
+        unsafe { self.voxels.corners_unchecked(base, dx, dy, dz) }.map(|v| self.normalise(v))
     }
 
     /// The normalised voxels at the corners of a trilinear cell (see
     /// [`Voxels::corners`]), one bounds check.
     #[inline(always)]
     pub fn corners(&self, base: usize, dx: usize, dy: usize, dz: usize) -> [f32; 8] {
-        let [a, b, c, d, e, f, g, h] = self.voxels.corners(base, dx, dy, dz);
-        [
-            self.normalise(a),
-            self.normalise(b),
-            self.normalise(c),
-            self.normalise(d),
-            self.normalise(e),
-            self.normalise(f),
-            self.normalise(g),
-            self.normalise(h),
-        ]
+        self.voxels
+            .corners(base, dx, dy, dz)
+            .map(|v| self.normalise(v))
     }
 
     /// The ranges `[min, max]` of the normalised values (NaN counts as 0, as when it

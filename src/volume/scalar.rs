@@ -301,20 +301,8 @@ impl<'a, T: Voxel> Voxels<'a, T> {
     pub fn corners(&self, base: usize, dx: usize, dy: usize, dz: usize) -> [T; 8] {
         let last = base + dx + dy + dz;
         assert!(last < self.len, "voxel index {last} out of {}", self.len);
-        let p = self.bytes.as_ptr();
-        let size = std::mem::size_of::<T>();
-        // SAFETY: every index is at most `last < len`, see `get`.
-        let at = |i: usize| unsafe { p.add(i * size).cast::<T>().read_unaligned() };
-        [
-            at(base),
-            at(base + dx),
-            at(base + dy),
-            at(base + dy + dx),
-            at(base + dz),
-            at(base + dz + dx),
-            at(base + dz + dy),
-            at(last),
-        ]
+        // SAFETY: the largest index, `last`, was checked just above.
+        unsafe { self.corners_unchecked(base, dx, dy, dz) }
     }
 
     /// [`Voxels::corners`] without the bounds check, for callers that derive the

@@ -271,11 +271,7 @@ impl<F: Field> Consumer for Midpoint<'_, F> {
             base,
             self.to_eye,
         );
-        if self.acc.add(c, a) {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
+        self.acc.add(c, a)
     }
 }
 
@@ -324,11 +320,7 @@ impl<F: Field> Segments<'_, F> {
             base,
             self.to_eye,
         );
-        if self.acc.add(c, a) {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
+        self.acc.add(c, a)
     }
 }
 
@@ -403,13 +395,17 @@ impl FrontToBack {
         }
     }
 
-    /// Adds a sample of colour `c` and opacity `a`; true once the ray may stop.
+    /// Adds a sample of colour `c` and opacity `a`; `Break` once the ray may stop.
     #[inline(always)]
-    fn add(&mut self, c: Vec3, a: f32) -> bool {
+    fn add(&mut self, c: Vec3, a: f32) -> ControlFlow<()> {
         let w = (1.0 - self.alpha) * f64::from(a);
         self.color += c.as_dvec3() * w;
         self.alpha += w;
-        self.alpha >= self.early_stop
+        if self.alpha >= self.early_stop {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
     }
 
     /// RGBA, not premultiplied.
