@@ -99,6 +99,7 @@ impl Setup {
                         t_enter,
                         t_exit,
                         t_depth_ref: t_enter,
+                        cut: None,
                     });
                 }
             }

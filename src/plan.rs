@@ -197,7 +197,16 @@ impl Plan {
         let passes: Vec<RenderPass> = scene
             .passes
             .iter()
-            .map(|p| RenderPass::new(p, header.scalar_type, voxel_length, light, !opts.no_skip))
+            .map(|p| {
+                let clips = scene
+                    .clips
+                    .iter()
+                    .filter(|c| c.applies_to(&p.name))
+                    .map(|c| c.plane())
+                    .collect();
+                RenderPass::new(p, header.scalar_type, voxel_length, light, !opts.no_skip)
+                    .with_clips(clips)
+            })
             .collect();
         let auto_window = scene
             .passes
@@ -521,6 +530,11 @@ impl Plan {
                 _ => {}
             }
             needs.extend(rp.describe(header.sizes));
+            for (k, c) in scene.clips.iter().enumerate() {
+                if c.applies_to(&p.name) {
+                    needs.push(describe_clip(k, c, &p.mode));
+                }
+            }
             if let Some(sh) = p.mode.shading() {
                 needs.push(format!("material {}", sh.material_name));
             }
@@ -580,6 +594,31 @@ impl Plan {
         let _ = write!(s, "samples  at most about {:.3e}", self.samples_estimate);
         s
     }
+}
+
+/// One line of `check` for clipping plane `k` of a pass of `mode`.
+fn describe_clip(k: usize, c: &crate::scene::Clip, mode: &Mode) -> String {
+    let name = c.name.clone().unwrap_or_else(|| format!("#{}", k + 1));
+    let v = |p: glam::DVec3| format!("[{}, {}, {}]", p.x, p.y, p.z);
+    let offset = if c.offset != 0.0 {
+        format!(" moved {} along it", c.offset)
+    } else {
+        String::new()
+    };
+    let cap = match (c.cap, mode) {
+        (_, Mode::Surface { .. } | Mode::Depth { .. }) if c.cap => {
+            ", the cut face capped where it is inside the object"
+        }
+        (_, Mode::Surface { .. } | Mode::Depth { .. }) => {
+            ", no cap (the surface is seen from inside where the cut is inside the object)"
+        }
+        _ => "",
+    };
+    format!(
+        "clipping plane {name}: through {} with normal {}{offset}, removes the side the normal points into (rays cut analytically){cap}",
+        v(c.point),
+        v(c.normal)
+    )
 }
 
 /// The light of the scene in renderer form (`centre`: the volume box's centre, the

@@ -27,14 +27,14 @@ pub fn render(text: &str) -> Vec<RenderedView> {
 }
 
 /// World (x, z) of the centre of pixel (i, j) of an n x n orthographic image.
-fn pixel_xz(i: usize, j: usize, n: usize) -> (f64, f64) {
+pub fn pixel_xz(i: usize, j: usize, n: usize) -> (f64, f64) {
     let u = 2.0 * (i as f64 + 0.5) / n as f64 - 1.0;
     let v = 1.0 - 2.0 * (j as f64 + 0.5) / n as f64;
     (u * SQRT3, v * SQRT3)
 }
 
 /// erf by Abramowitz & Stegun 7.1.26 (absolute error below 1.5e-7).
-fn erf(x: f64) -> f64 {
+pub fn erf(x: f64) -> f64 {
     let s = x.signum();
     let x = x.abs();
     let t = 1.0 / (1.0 + 0.327_591_1 * x);
@@ -56,7 +56,7 @@ fn inner_pixels(n: usize, margin: f64) -> impl Iterator<Item = (usize, usize, f6
     })
 }
 
-const GAUSS: &str = r#"
+pub const GAUSS: &str = r#"
 [volume]
 synthetic = "gaussian"
 sigma = 0.25
@@ -70,7 +70,7 @@ format = "nrrd"
 
 /// Bound on the trilinear reconstruction error of the Gaussian blob:
 /// |f - I f| <= h^2/8 (|f_xx| + |f_yy| + |f_zz|), |f_aa| <= 1/sigma^2, h = 2/96.
-fn gauss_trilinear_bound() -> f64 {
+pub fn gauss_trilinear_bound() -> f64 {
     let h = 2.0 / 96.0;
     h * h / 8.0 * 3.0 / (0.25 * 0.25)
 }
@@ -185,7 +185,7 @@ fn lmip_finds_the_first_local_maximum() {
     }
 }
 
-const SPHERE: &str = r#"
+pub const SPHERE: &str = r#"
 [volume]
 synthetic = "sphere-distance"
 radius = 1.0

@@ -52,6 +52,7 @@ fn pixel_ray(n: [usize; 3], o: DVec3, d: DVec3) -> Option<PixelRay> {
         t_enter,
         t_exit,
         t_depth_ref: t_enter,
+        cut: None,
     })
 }
 

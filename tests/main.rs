@@ -7,6 +7,7 @@ mod analytic;
 mod bad_input;
 mod batch;
 mod cli;
+mod clip;
 mod confine;
 mod determinism;
 mod exit_codes;

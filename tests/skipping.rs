@@ -187,3 +187,20 @@ fn jitter_filters_and_exact_integration_skip_without_changing_a_pixel() {
         0.2,
     );
 }
+
+#[test]
+fn clipped_passes_skip_without_changing_a_pixel() {
+    // two oblique planes through two blobs' centres (the volume spans 0..32 in
+    // world units): rays enter through a plane inside an
+    // object (capped and not), and the falling search for the far wall skips too
+    all(
+        "[[render]]\nname = \"m\"\nmode = \"mip\"\n\
+         [[render]]\nname = \"c\"\nmode = \"composite\"\ntransfer = \"ramp\"\n\
+         [[render]]\nname = \"s\"\nmode = \"surface\"\niso = 0.3\n\
+         [[render]]\nname = \"d\"\nmode = \"depth\"\nthreshold = 0.3\nintegration = \"exact\"\n\
+         [[render]]\nname = \"e\"\nmode = \"surface\"\niso = 0.3\nintegration = \"exact\"\n\
+         [[clip]]\npoint = [9.6, 12.8, 17.6]\nnormal = [-0.3, -1, 0.2]\n\
+         [[clip]]\npoint = [21.6, 18.4, 12]\nnormal = [1, -0.5, -0.4]\ncap = true\npasses = [\"m\", \"s\", \"e\"]\n",
+        0.2,
+    );
+}

@@ -542,6 +542,14 @@ pub fn resolved_scene(scene: &Scene) -> Value {
             "format": format!("{:?}", scene.image.format).to_lowercase(),
         },
         "passes": passes,
+        "clips": scene.clips.iter().map(|c| json!({
+            "name": c.name,
+            "point": c.point.to_array(),
+            "normal": c.normal.to_array(),
+            "offset": c.offset,
+            "cap": c.cap,
+            "passes": c.passes,
+        })).collect::<Vec<_>>(),
         "light": {
             "kind": light,
             "color": scene.light.color.to_array(),

@@ -9,6 +9,7 @@
 
 use rayon::prelude::*;
 
+use super::clip::{clip_ray, ClipPlane};
 use super::integrator::{jitter_fraction, Counts, Integrand, PixelRay};
 use super::march::March;
 use super::skip::MacroGrid;
@@ -67,6 +68,8 @@ pub struct Kernel<'a, F: Field, I: Integrand> {
     pub dt: f64,
     /// Per-pass seed of the jittered first sample; `None` = no jitter.
     pub jitter: Option<u64>,
+    /// The clipping planes that apply to the pass.
+    pub clips: &'a [ClipPlane],
 }
 
 /// A pass ready to render views, with its types erased.
@@ -140,14 +143,22 @@ impl<F: Field, I: Integrand> RenderView for Kernel<'_, F, I> {
             Projection::Perspective => 0.0,
             Projection::Orthographic => f64::NEG_INFINITY,
         };
-        let (t_enter, t_exit) = frame.clip(&index, t_min)?;
+        let (t_box, t_exit) = frame.clip(&index, t_min)?;
+        // depth is measured from the bounding sphere (or the box), whatever the cut
+        let t_depth_ref = view.depth_reference(&ray).unwrap_or(t_box);
+        let (t_enter, t_exit, cut) = if self.clips.is_empty() {
+            (t_box, t_exit, None)
+        } else {
+            clip_ray(self.clips, ray.origin, ray.dir, (t_box, t_exit))?
+        };
         let pixel_ray = PixelRay {
             origin: ray.origin,
             dir: ray.dir,
             index,
             t_enter,
             t_exit,
-            t_depth_ref: view.depth_reference(&ray).unwrap_or(t_enter),
+            t_depth_ref,
+            cut,
         };
         let jitter = self.jitter.map_or(0.0, |seed| {
             let (e, f) = (view.eye, view.forward);

@@ -9,9 +9,11 @@
 //! march.rs       where a ray is sampled
 //! skip.rs        the macrocell grid and its walk (empty-space skipping)
 //! camera.rs, ray.rs   views, rays and their clipping to the volume's box
+//! clip.rs        clipping planes, cut from each ray's interval
 //! ```
 
 pub mod camera;
+pub mod clip;
 pub mod frame;
 pub mod integrator;
 pub mod march;
@@ -20,6 +22,7 @@ pub mod ray;
 pub mod skip;
 
 pub use camera::{Ray, View};
+pub use clip::{ClipPlane, Cut};
 pub use frame::{Film, Kernel, RenderView};
 pub use integrator::Counts;
 pub use pass::{ImageKind, Needs, RenderPass, Resources};

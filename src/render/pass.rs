@@ -17,6 +17,7 @@
 
 use glam::DMat3;
 
+use super::clip::ClipPlane;
 use super::frame::{Kernel, RenderView};
 use super::integrator::{
     Average, Composite, CompositeTable, Depth, Exact, Lmip, Minip, Mip, Surface, Xray,
@@ -107,6 +108,7 @@ pub struct RenderPass {
     jitter: Option<u64>,
     needs: Needs,
     scalar_type: ScalarType,
+    clips: Vec<ClipPlane>,
 }
 
 impl RenderPass {
@@ -229,7 +231,19 @@ impl RenderPass {
                 grid,
             },
             scalar_type,
+            clips: Vec::new(),
         }
+    }
+
+    /// The pass with the clipping planes that apply to it (world coordinates).
+    pub fn with_clips(mut self, clips: Vec<ClipPlane>) -> RenderPass {
+        self.clips = clips;
+        self
+    }
+
+    /// The clipping planes that apply to the pass.
+    pub fn clips(&self) -> &[ClipPlane] {
+        &self.clips
     }
 
     /// What the pass needs computed over the whole volume.
@@ -497,7 +511,7 @@ impl RenderPass {
     }
 
     fn kernel<'a, F: Field, I: super::integrator::Integrand>(
-        &self,
+        &'a self,
         field: F,
         integrand: I,
         res: &'a Resources<'a>,
@@ -508,6 +522,7 @@ impl RenderPass {
             grid: self.needs.grid.and_then(|s| res.grid(s)),
             dt: self.dt,
             jitter: self.jitter,
+            clips: &self.clips,
         }
     }
 

@@ -42,6 +42,8 @@ pub struct Scene {
     pub passes: Vec<RenderPass>,
     /// The light for shaded passes.
     pub light: LightSpec,
+    /// Clipping planes (`[[clip]]`), in file order.
+    pub clips: Vec<Clip>,
     /// Animated files to assemble from each pass's frames, when requested.
     pub animation: Option<Animation>,
     /// The scene file's text as read (recorded in the output's manifest and hashed
@@ -419,6 +421,41 @@ pub struct RenderPass {
     pub integration: Integration,
     /// Jitter each ray's first sample by a per-pixel fraction of the step.
     pub jitter: bool,
+}
+
+/// One `[[clip]]` plane: removes the half-space its normal points into.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Clip {
+    /// Name (for `check` and for keyframes); `None` when not given.
+    pub name: Option<String>,
+    /// A point of the plane before the offset (world coordinates).
+    pub point: DVec3,
+    /// Unit normal (world), pointing into the removed half-space.
+    pub normal: DVec3,
+    /// Distance the plane is moved along its normal.
+    pub offset: f64,
+    /// Surface and depth passes show the cut face where it is inside the object.
+    pub cap: bool,
+    /// The passes it applies to; `None` = every pass.
+    pub passes: Option<Vec<String>>,
+}
+
+impl Clip {
+    /// Whether the plane clips the pass named `pass`.
+    pub fn applies_to(&self, pass: &str) -> bool {
+        self.passes
+            .as_ref()
+            .is_none_or(|names| names.iter().any(|n| n == pass))
+    }
+
+    /// The plane as the renderer takes it: through `point + offset normal`.
+    pub fn plane(&self) -> crate::render::ClipPlane {
+        crate::render::ClipPlane {
+            point: self.point + self.offset * self.normal,
+            normal: self.normal,
+            cap: self.cap,
+        }
+    }
 }
 
 /// How a pass integrates along its rays.

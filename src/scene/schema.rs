@@ -29,6 +29,18 @@ pub struct SceneFile {
     pub material: BTreeMap<String, Spanned<MaterialTable>>,
     pub light: Option<Spanned<LightTable>>,
     pub animation: Option<Spanned<AnimationTable>>,
+    pub clip: Option<Vec<Spanned<ClipTable>>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClipTable {
+    pub name: Sp<String>,
+    pub point: Option<Spanned<[f64; 3]>>,
+    pub normal: Option<Spanned<[f64; 3]>>,
+    pub offset: Sp<f64>,
+    pub cap: Sp<bool>,
+    pub passes: Sp<Vec<Spanned<String>>>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -34,22 +34,129 @@ pub struct Surface {
     pub shader: Shader,
 }
 
-/// The search for the first sample at or above `level`.
+/// How the search for a ray's crossing starts: where the ray enters through a
+/// clipping plane inside the object (at or above the level), a capped plane is the
+/// surface there, and an uncapped one shows the surface from inside, the first
+/// point where the field falls below the level.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Entry {
+    /// The first point at or above the level (also a ray that enters the box
+    /// inside the object: the box face is the surface).
+    Rising,
+    /// The first point below the level.
+    Falling,
+    /// The cut face at the entry, with this outward normal.
+    Cap(DVec3),
+}
+
+impl Entry {
+    /// How `ray`'s search for `level` starts (one sample at the entry when the ray
+    /// enters through a clipping plane).
+    pub(super) fn of<F: Field>(field: &F, ray: &PixelRay, level: f32) -> Entry {
+        match ray.cut {
+            Some(cut) if field.value(ray.index.at(ray.t_enter)) >= level => {
+                if cut.cap {
+                    Entry::Cap(cut.normal)
+                } else {
+                    Entry::Falling
+                }
+            }
+            _ => Entry::Rising,
+        }
+    }
+
+    /// The hit of `level` along `ray`: the cap at the entry, or what `crossing`
+    /// (the first crossing, rising or not) finds; `nominal` is the count of samples
+    /// (or cells) the ray would take.
+    pub(super) fn search<F: Field>(
+        field: &F,
+        ray: &PixelRay,
+        level: f32,
+        nominal: u64,
+        crossing: impl FnOnce(bool) -> (Option<f64>, Counts),
+    ) -> (Option<Hit>, Counts) {
+        let rising = match Entry::of(field, ray, level) {
+            Entry::Cap(normal) => {
+                let counts = Counts { taken: 1, nominal };
+                return (Some(Hit::Cap(ray.t_enter, normal)), counts);
+            }
+            Entry::Rising => true,
+            Entry::Falling => false,
+        };
+        let (t, counts) = crossing(rising);
+        (t.map(Hit::Level), counts)
+    }
+}
+
+/// What a crossing search found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Hit {
+    /// A crossing of the level at `t`.
+    Level(f64),
+    /// The cut face of a capped clipping plane at `t`, with its outward normal.
+    Cap(f64, DVec3),
+}
+
+impl Hit {
+    /// The ray parameter of the hit.
+    pub(super) fn t(self) -> f64 {
+        match self {
+            Hit::Level(t) | Hit::Cap(t, _) => t,
+        }
+    }
+
+    /// The distance from the depth reference (NaN where there is no hit).
+    pub(super) fn depth(hit: Option<Hit>, ray: &PixelRay) -> f32 {
+        hit.map_or(f32::NAN, |h| (h.t() - ray.t_depth_ref) as f32)
+    }
+
+    /// The shaded colour of a hit (transparent where there is none).
+    pub(super) fn shade<F: Field>(
+        hit: Option<Hit>,
+        field: &F,
+        shader: &Shader,
+        ray: &PixelRay,
+    ) -> [f32; 4] {
+        match hit {
+            Some(Hit::Level(t)) => shade_hit(field, shader, ray, t),
+            Some(Hit::Cap(t, normal)) => shade_normal(shader, ray, t, Some(normal)),
+            None => [0.0; 4],
+        }
+    }
+}
+
+/// The search for the first sample at or above `level` (below it, when falling).
 struct FirstCrossing<'a, F: Field> {
     field: &'a F,
     ray: &'a PixelRay,
     march: &'a March,
     level: f32,
+    rising: bool,
     /// The previous sample, unless it was passed over.
     prev: Option<(f64, f32)>,
     hit: Option<f64>,
     extra: u64,
 }
 
+impl<F: Field> FirstCrossing<'_, F> {
+    #[inline(always)]
+    fn reached(&self, f: f32) -> bool {
+        if self.rising {
+            f >= self.level
+        } else {
+            f < self.level
+        }
+    }
+}
+
 impl<F: Field> Consumer for FirstCrossing<'_, F> {
     #[inline(always)]
     fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
-        range[1] < self.level
+        if self.rising {
+            range[1] < self.level
+        } else {
+            range[0] >= self.level
+        }
     }
 
     #[inline(always)]
@@ -60,7 +167,7 @@ impl<F: Field> Consumer for FirstCrossing<'_, F> {
 
     #[inline(always)]
     fn take(&mut self, i: usize, t: f64, f: f32) -> ControlFlow<()> {
-        if f >= self.level {
+        if self.reached(f) {
             if i == 0 {
                 self.hit = Some(t);
                 return ControlFlow::Break(());
@@ -70,7 +177,8 @@ impl<F: Field> Consumer for FirstCrossing<'_, F> {
                 self.extra += 1;
                 (tp, self.field.value(self.ray.index.at(tp)))
             });
-            let (t_hit, extra) = refine(self.field, self.ray, self.level, prev, (t, f));
+            let (t_hit, extra) =
+                refine(self.field, self.ray, self.level, self.rising, prev, (t, f));
             self.extra += extra;
             self.hit = Some(t_hit);
             return ControlFlow::Break(());
@@ -80,19 +188,22 @@ impl<F: Field> Consumer for FirstCrossing<'_, F> {
     }
 }
 
-/// Finds the first `t` where the field reaches `level`.
+/// Finds the first `t` where the field reaches `level` (falls below it, when not
+/// `rising`).
 fn first_crossing<F: Field>(
     field: &F,
     ray: &PixelRay,
     march: &March,
     grid: Option<&MacroGrid>,
     level: f32,
+    rising: bool,
 ) -> (Option<f64>, Counts) {
     let mut c = FirstCrossing {
         field,
         ray,
         march,
         level,
+        rising,
         prev: None,
         hit: None,
         extra: 0,
@@ -105,21 +216,38 @@ fn first_crossing<F: Field>(
     (c.hit, counts)
 }
 
+/// The hit of `level` along a sampled ray: where it starts ([`Entry`]), then the
+/// first crossing.
+fn find_hit<F: Field>(
+    field: &F,
+    ray: &PixelRay,
+    march: &March,
+    grid: Option<&MacroGrid>,
+    level: f32,
+) -> (Option<Hit>, Counts) {
+    Entry::search(field, ray, level, march.len() as u64, |rising| {
+        first_crossing(field, ray, march, grid, level, rising)
+    })
+}
+
 /// Refines the crossing of `level` between samples `a` and `b` (`f(a) < level <=
-/// f(b)`) to 1e-7 of their distance. Returns it and the extra samples taken.
+/// f(b)`, or the reverse when falling) to 1e-7 of their distance. Returns it and
+/// the extra samples taken.
 fn refine<F: Field>(
     field: &F,
     ray: &PixelRay,
     level: f32,
+    rising: bool,
     a: (f64, f32),
     b: (f64, f32),
 ) -> (f64, u64) {
-    let g = |t: f64| (field.value(ray.index.at(t)) - level) as f64;
+    let sign = if rising { 1.0 } else { -1.0 };
+    let g = |t: f64| sign * (field.value(ray.index.at(t)) - level) as f64;
     let tol = (b.0 - a.0) * 1e-7;
     illinois(
         g,
-        (a.0, (a.1 - level) as f64),
-        (b.0, (b.1 - level) as f64),
+        (a.0, sign * (a.1 - level) as f64),
+        (b.0, sign * (b.1 - level) as f64),
         |ta, tb| tb - ta <= tol,
         60,
     )
@@ -138,9 +266,8 @@ impl Integrand for Depth {
         march: &March,
         grid: Option<&MacroGrid>,
     ) -> ([f32; 4], Counts) {
-        let (hit, counts) = first_crossing(field, ray, march, grid, self.threshold);
-        let d = hit.map_or(f32::NAN, |t| (t - ray.t_depth_ref) as f32);
-        ([d, 0.0, 0.0, 0.0], counts)
+        let (hit, counts) = find_hit(field, ray, march, grid, self.threshold);
+        ([Hit::depth(hit, ray), 0.0, 0.0, 0.0], counts)
     }
 }
 
@@ -157,11 +284,8 @@ impl Integrand for Surface {
         march: &March,
         grid: Option<&MacroGrid>,
     ) -> ([f32; 4], Counts) {
-        let (hit, counts) = first_crossing(field, ray, march, grid, self.iso);
-        match hit {
-            Some(t) => (shade_hit(field, &self.shader, ray, t), counts),
-            None => ([0.0; 4], counts),
-        }
+        let (hit, counts) = find_hit(field, ray, march, grid, self.iso);
+        (Hit::shade(hit, field, &self.shader, ray), counts)
     }
 }
 
@@ -181,6 +305,11 @@ pub fn normal_from_gradient(grad: DVec3, ray_dir: DVec3) -> Option<DVec3> {
 /// normal from the field's gradient there.
 pub fn shade_hit<F: Field>(field: &F, shader: &Shader, ray: &PixelRay, t: f64) -> [f32; 4] {
     let normal = normal_from_gradient(field.gradient(ray.index.at(t)), ray.dir);
+    shade_normal(shader, ray, t, normal)
+}
+
+/// The shaded colour (white, alpha 1) at `t` with a given unit normal.
+fn shade_normal(shader: &Shader, ray: &PixelRay, t: f64, normal: Option<DVec3>) -> [f32; 4] {
     let c = shader.shade(
         ray.world(t).as_vec3(),
         normal.map(|n| n.as_vec3()),
@@ -223,9 +352,10 @@ mod tests {
             t_enter: 0.0,
             t_exit: 10.0,
             t_depth_ref: 0.0,
+            cut: None,
         };
         let m = March::new(0.0, 10.0, 1.0);
-        first_crossing(&Along(f), &ray, &m, None, level).0
+        first_crossing(&Along(f), &ray, &m, None, level, true).0
     }
 
     #[test]

@@ -27,7 +27,7 @@
 
 use std::ops::ControlFlow;
 
-use super::crossing::shade_hit;
+use super::crossing::{Entry, Hit};
 use super::root::illinois;
 use super::xray::finish;
 use super::{Counts, Integrand, PixelRay};
@@ -478,28 +478,38 @@ impl Integrand for Exact {
                 ([v as f32, 0.0, 0.0, 0.0], counts)
             }
             Exact::Depth { threshold } => {
-                let (hit, counts) = first_crossing(field, ray, grid, *threshold);
-                let d = hit.map_or(f32::NAN, |t| (t - ray.t_depth_ref) as f32);
-                ([d, 0.0, 0.0, 0.0], counts)
+                let (hit, counts) = find_hit(field, ray, grid, *threshold);
+                ([Hit::depth(hit, ray), 0.0, 0.0, 0.0], counts)
             }
             Exact::Surface { iso, shader } => {
-                let (hit, counts) = first_crossing(field, ray, grid, *iso);
-                match hit {
-                    Some(t) => (shade_hit(field, shader, ray, t), counts),
-                    None => ([0.0; 4], counts),
-                }
+                let (hit, counts) = find_hit(field, ray, grid, *iso);
+                (Hit::shade(hit, field, shader, ray), counts)
             }
         }
     }
 }
 
-/// The first `t` where the interpolant reaches `level`, passing over the cells
-/// that cannot reach it.
+/// The hit of `level` along the interpolant: where the search starts ([`Entry`]),
+/// then the first crossing.
+fn find_hit<F: Field>(
+    field: &F,
+    ray: &PixelRay,
+    grid: Option<&MacroGrid>,
+    level: f32,
+) -> (Option<Hit>, Counts) {
+    Entry::search(field, ray, level, 1, |rising| {
+        first_crossing(field, ray, grid, level, rising)
+    })
+}
+
+/// The first `t` where the interpolant reaches `level` (falls to it, when not
+/// `rising`), passing over the cells that cannot.
 fn first_crossing<F: Field>(
     field: &F,
     ray: &PixelRay,
     grid: Option<&MacroGrid>,
     level: f32,
+    rising: bool,
 ) -> (Option<f64>, Counts) {
     let level_f32 = level;
     let level = f64::from(level);
@@ -508,17 +518,38 @@ fn first_crossing<F: Field>(
         field,
         ray,
         grid,
-        |r| r[1] < level_f32,
-        |s| match s.first_reach(level) {
-            Some(x) => {
-                hit = Some(s.t0 + x);
-                ControlFlow::Break(())
+        |r| {
+            if rising {
+                r[1] < level_f32
+            } else {
+                r[0] > level_f32
             }
-            None => ControlFlow::Continue(()),
+        },
+        |s| {
+            // falling to the level is rising to its negative on the negated cubic
+            let reach = if rising {
+                s.first_reach(level)
+            } else {
+                Segment {
+                    c: s.c.map(|c| -c),
+                    ..*s
+                }
+                .first_reach(-level)
+            };
+            match reach {
+                Some(x) => {
+                    hit = Some(s.t0 + x);
+                    ControlFlow::Break(())
+                }
+                None => ControlFlow::Continue(()),
+            }
         },
     );
-    if counts.nominal == 0 && ray.t_exit >= ray.t_enter && entry_value(field, ray) >= level {
-        hit = Some(ray.t_enter);
+    if counts.nominal == 0 && ray.t_exit >= ray.t_enter {
+        let f = entry_value(field, ray);
+        if (rising && f >= level) || (!rising && f <= level) {
+            hit = Some(ray.t_enter);
+        }
     }
     (hit, counts)
 }

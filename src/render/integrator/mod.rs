@@ -25,6 +25,7 @@ pub use exact::Exact;
 pub use projection::{Average, Lmip, Minip, Mip};
 pub use xray::Xray;
 
+use super::clip::Cut;
 use super::march::{Lattice, March};
 use super::ray::IndexRay;
 use super::skip::MacroGrid;
@@ -62,6 +63,9 @@ pub struct PixelRay {
     pub t_exit: f64,
     /// Where depth is measured from.
     pub t_depth_ref: f64,
+    /// The clipping plane the ray enters through, when a plane (not the box) sets
+    /// `t_enter`.
+    pub cut: Option<Cut>,
 }
 
 impl PixelRay {

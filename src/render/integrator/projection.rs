@@ -343,6 +343,7 @@ mod tests {
             t_enter: 0.0,
             t_exit: (n - 1) as f64,
             t_depth_ref: 0.0,
+            cut: None,
         }
     }
 

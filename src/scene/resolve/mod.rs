@@ -3,9 +3,10 @@
 //! is collected with its place in the file; the scene is returned only if there
 //! are none. One submodule per part of the scene: [`volume`], [`view`] (camera,
 //! orbit, image, stereo, animation, light), [`appearance`] (materials and transfer
-//! functions) and [`passes`].
+//! functions), [`passes`] and [`clip`].
 
 mod appearance;
+mod clip;
 mod passes;
 mod view;
 mod volume;
@@ -73,6 +74,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let materials = r.materials(&file.material);
     let transfers = r.transfers(&file.transfer);
     let passes = r.passes(file.render.as_deref(), &materials, &transfers);
+    let clips = r.clips(file.clip.as_deref(), &passes);
     // "needs `key`" adds nothing when `key` was given but of the wrong type
     diags.extend(r.diags.into_iter().filter(|d| {
         !(d.message.contains("needs")
@@ -94,6 +96,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         image,
         passes,
         light,
+        clips,
         animation,
         text: text.to_string(),
         warnings: r.warnings,
