@@ -25,7 +25,7 @@ use crate::output::Eye;
 use crate::render::pass::GridSource;
 use crate::render::skip::MacroGrid;
 use crate::render::{ImageKind, IndexFrame, RenderPass};
-use crate::scene::{Format, Layout, LightKindSpec, Mode, Scene, Units};
+use crate::scene::{Format, Layout, LightKindSpec, MipOutput, Mode, Scene, Units};
 use crate::shade::{Light, LightKind};
 use crate::volume::{human_bytes, VolumeHeader};
 
@@ -204,8 +204,15 @@ impl Plan {
                     .filter(|c| c.applies_to(&p.name))
                     .map(|c| c.plane())
                     .collect();
-                RenderPass::new(p, header.scalar_type, voxel_length, light, !opts.no_skip)
-                    .with_clips(clips)
+                RenderPass::new(
+                    p,
+                    header.scalar_type,
+                    voxel_length,
+                    2.0 * sphere.1,
+                    light,
+                    !opts.no_skip,
+                )
+                .with_clips(clips)
             })
             .collect();
         let auto_window = scene
@@ -527,6 +534,29 @@ impl Plan {
                     needs.push(format!("threshold {}", both(threshold)));
                 }
                 Mode::Surface { iso, .. } => needs.push(format!("iso value {}", both(iso))),
+                Mode::Mip { depth_cue, output } => {
+                    let d = 2.0 * self.sphere.1;
+                    if depth_cue > 0.0 {
+                        needs.push(format!(
+                            "depth cue {depth_cue}: each sample weighted by 1 - {depth_cue} s / {d:.4} (s = depth from the bounding sphere's entry, {d:.4} = its diameter)"
+                        ));
+                    }
+                    match output {
+                        MipOutput::Value => {}
+                        MipOutput::DepthOfMax => needs.push(
+                            "stores the depth s of the first sample reaching the maximum (NaN where the ray misses)".into(),
+                        ),
+                        MipOutput::DepthCoded(map) => {
+                            let [lo, hi] = p.window.unwrap_or([0.0, 1.0]);
+                            needs.push(format!(
+                                "depth-coded colour: {} from depth 0 to {d:.4}, brightness from the maximum over [{}, {}]",
+                                map.name(),
+                                both(lo),
+                                both(hi)
+                            ));
+                        }
+                    }
+                }
                 _ => {}
             }
             needs.extend(rp.describe(header.sizes));
@@ -543,10 +573,10 @@ impl Plan {
                     "grey window from a {}x{} preview of every frame",
                     self.preview.0, self.preview.1
                 ));
-            } else if let Some([lo, hi]) = p.window {
+            } else if let (Some([lo, hi]), false) = (p.window, rp.kind() == ImageKind::Rgba) {
                 let value_based = matches!(
                     p.mode,
-                    Mode::Mip | Mode::Minip | Mode::Average | Mode::Lmip { .. }
+                    Mode::Mip { .. } | Mode::Minip | Mode::Average | Mode::Lmip { .. }
                 );
                 if value_based && units != Units::Normalised {
                     needs.push(format!(

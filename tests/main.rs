@@ -9,6 +9,7 @@ mod batch;
 mod cli;
 mod clip;
 mod confine;
+mod depth_cue;
 mod determinism;
 mod exit_codes;
 mod fuzz;

@@ -204,3 +204,14 @@ fn clipped_passes_skip_without_changing_a_pixel() {
         0.2,
     );
 }
+
+#[test]
+fn depth_cued_mip_skips_without_changing_a_pixel() {
+    all(
+        "[[render]]\nname = \"v\"\nmode = \"mip\"\ndepth_cue = 0.6\n\
+         [[render]]\nname = \"d\"\nmode = \"mip\"\ndepth_cue = 0.3\noutput = \"depth-of-max\"\n\
+         [[render]]\nname = \"c\"\nmode = \"mip\"\noutput = \"depth-coded\"\ncolormap = \"viridis\"\n\
+         [[render]]\nname = \"e\"\nmode = \"mip\"\ndepth_cue = 0.9\noutput = \"depth-of-max\"\nintegration = \"exact\"\n",
+        0.2,
+    );
+}

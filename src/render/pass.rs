@@ -20,14 +20,15 @@ use glam::DMat3;
 use super::clip::ClipPlane;
 use super::frame::{Kernel, RenderView};
 use super::integrator::{
-    Average, Composite, CompositeTable, Depth, Exact, Lmip, Minip, Mip, Surface, Xray,
+    Average, Composite, CompositeTable, CuedMip, CuedOutput, Depth, Exact, Lmip, Minip, Mip,
+    Surface, Xray,
 };
 use super::skip::{MacroGrid, Support};
 use crate::sample::{
     bits_table, gradient_volume_normalised, prefilter_normalised, BSpline, Cubic, Field,
     GradientMethod, Gradients, Grid, Interpolation, Nearest, Normalize, Trilinear,
 };
-use crate::scene::{Integration, Mode, Transfer};
+use crate::scene::{Integration, MipOutput, Mode, Transfer};
 use crate::shade::{Light, Shader};
 use crate::transfer::{Preintegrated, COLOR_ENTRIES, INTEGRAL_ENTRIES};
 use crate::volume::{human_bytes, ScalarType, VolumeData, Voxel};
@@ -74,6 +75,7 @@ pub enum ImageKind {
 enum ModeSpec {
     Xray(Xray),
     Mip,
+    CuedMip(CuedMip),
     Minip,
     Average,
     Lmip(Lmip),
@@ -113,11 +115,13 @@ pub struct RenderPass {
 
 impl RenderPass {
     /// Plans `pass` for a volume of `scalar_type` whose smallest spacing is
-    /// `voxel_length`, lit by `light`; `skip` = empty-space skipping.
+    /// `voxel_length` and whose bounding sphere is `sphere_diameter` across (where
+    /// depth cues are measured), lit by `light`; `skip` = empty-space skipping.
     pub fn new(
         pass: &crate::scene::RenderPass,
         scalar_type: ScalarType,
         voxel_length: f64,
+        sphere_diameter: f64,
         light: Light,
         skip: bool,
     ) -> RenderPass {
@@ -142,8 +146,33 @@ impl RenderPass {
                     ModeSpec::Xray(x)
                 }
             }
-            Mode::Mip if exact => ModeSpec::Exact(Exact::Mip),
-            Mode::Mip => ModeSpec::Mip,
+            Mode::Mip {
+                depth_cue: 0.0,
+                output: MipOutput::Value,
+            } if exact => ModeSpec::Exact(Exact::Mip),
+            Mode::Mip {
+                depth_cue: 0.0,
+                output: MipOutput::Value,
+            } => ModeSpec::Mip,
+            Mode::Mip { depth_cue, output } => {
+                let cued = CuedMip {
+                    cue: *depth_cue,
+                    diameter: sphere_diameter,
+                    output: match output {
+                        MipOutput::Value => CuedOutput::Value,
+                        MipOutput::DepthOfMax => CuedOutput::Depth,
+                        MipOutput::DepthCoded(map) => CuedOutput::Coded {
+                            map: *map,
+                            window: pass.window.unwrap_or([0.0, 1.0]).map(|x| x as f32),
+                        },
+                    },
+                };
+                if exact {
+                    ModeSpec::Exact(Exact::CuedMip(cued))
+                } else {
+                    ModeSpec::CuedMip(cued)
+                }
+            }
             Mode::Minip if exact => ModeSpec::Exact(Exact::Minip),
             Mode::Minip => ModeSpec::Minip,
             Mode::Average if exact => ModeSpec::Exact(Exact::Average),
@@ -271,6 +300,11 @@ impl RenderPass {
             | ModeSpec::Composite { .. }
             | ModeSpec::Exact(Exact::Surface { .. }) => ImageKind::Rgba,
             ModeSpec::Depth(_) | ModeSpec::Exact(Exact::Depth { .. }) => ImageKind::Depth,
+            ModeSpec::CuedMip(c) | ModeSpec::Exact(Exact::CuedMip(c)) => match c.output {
+                CuedOutput::Value => ImageKind::Intensity,
+                CuedOutput::Depth => ImageKind::Depth,
+                CuedOutput::Coded { .. } => ImageKind::Rgba,
+            },
             _ => ImageKind::Intensity,
         }
     }
@@ -373,6 +407,9 @@ impl RenderPass {
                 | (ModeSpec::Exact(Exact::Xray { .. } | Exact::Average), _) => "all-zero cells",
                 (ModeSpec::Mip | ModeSpec::Exact(Exact::Mip), _) => {
                     "cells that cannot beat the running maximum"
+                }
+                (ModeSpec::CuedMip(_) | ModeSpec::Exact(Exact::CuedMip(_)), _) => {
+                    "cells that cannot beat the running weighted maximum"
                 }
                 (ModeSpec::Minip | ModeSpec::Exact(Exact::Minip), _) => {
                     "cells that cannot beat the running minimum"
@@ -534,6 +571,7 @@ impl RenderPass {
         match &self.mode {
             ModeSpec::Xray(x) => Box::new(self.kernel(field, *x, res)),
             ModeSpec::Mip => Box::new(self.kernel(field, Mip, res)),
+            ModeSpec::CuedMip(c) => Box::new(self.kernel(field, *c, res)),
             ModeSpec::Minip => Box::new(self.kernel(field, Minip, res)),
             ModeSpec::Average => Box::new(self.kernel(field, Average, res)),
             ModeSpec::Lmip(l) => Box::new(self.kernel(field, *l, res)),

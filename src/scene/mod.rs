@@ -324,6 +324,19 @@ pub const MODE_NAMES: &[&str] = &[
     "composite",
 ];
 
+/// What a MIP pass stores per pixel (`output`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MipOutput {
+    /// The (depth-cued) maximum.
+    Value,
+    /// The depth `s` of the first sample that reaches the maximum (NaN where the
+    /// ray misses).
+    DepthOfMax,
+    /// Colour: the map at `s / D` times the maximum's brightness in the pass's
+    /// window.
+    DepthCoded(crate::transfer::Colormap),
+}
+
 /// What a pass computes per ray, with its parameters.
 #[derive(Clone, Debug)]
 pub enum Mode {
@@ -334,8 +347,15 @@ pub enum Mode {
         /// Attenuation scale.
         mu: f64,
     },
-    /// Maximum intensity projection.
-    Mip,
+    /// Maximum intensity projection, optionally depth-cued.
+    Mip {
+        /// `c` in [0, 1]: each sample is weighted by `1 - c s / D` before the
+        /// maximum (`s` the depth from the bounding sphere's entry, `D` its
+        /// diameter); 0 = the plain MIP.
+        depth_cue: f64,
+        /// What is stored.
+        output: MipOutput,
+    },
     /// Minimum intensity projection.
     Minip,
     /// Path-length weighted mean along the ray.
@@ -379,7 +399,7 @@ impl Mode {
     pub fn name(&self) -> &'static str {
         match self {
             Mode::Xray { .. } => "xray",
-            Mode::Mip => "mip",
+            Mode::Mip { .. } => "mip",
             Mode::Minip => "minip",
             Mode::Average => "average",
             Mode::Lmip { .. } => "lmip",
@@ -391,7 +411,15 @@ impl Mode {
 
     /// True for modes whose image is one grey value per pixel.
     pub fn is_intensity(&self) -> bool {
-        !matches!(self, Mode::Surface { .. } | Mode::Composite { .. })
+        !matches!(
+            self,
+            Mode::Surface { .. }
+                | Mode::Composite { .. }
+                | Mode::Mip {
+                    output: MipOutput::DepthCoded(_),
+                    ..
+                }
+        )
     }
 
     /// The shading settings, for modes that shade.

@@ -126,9 +126,12 @@ pub struct RenderTable {
     pub window: Sp<[f64; 2]>,
     pub integration: Sp<String>,
     pub jitter: Sp<bool>,
-    // xray
+    // xray, mip
     pub output: Sp<String>,
     pub mu: Sp<f64>,
+    // mip
+    pub depth_cue: Sp<f64>,
+    pub colormap: Sp<String>,
     // lmip, depth
     pub threshold: Sp<f64>,
     // surface
@@ -154,6 +157,8 @@ impl RenderTable {
         let mut out = Vec::new();
         k(&mut out, "output", &self.output);
         k(&mut out, "mu", &self.mu);
+        k(&mut out, "depth_cue", &self.depth_cue);
+        k(&mut out, "colormap", &self.colormap);
         k(&mut out, "threshold", &self.threshold);
         k(&mut out, "iso", &self.iso);
         k(&mut out, "material", &self.material);

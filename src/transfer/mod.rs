@@ -7,6 +7,7 @@
 //! pass's reference step. Formulas: REFERENCE.md "Transfer functions" and "Emission-absorption
 //! and compositing".
 
+mod colormap;
 mod curve;
 mod one_d;
 mod preintegrated;
@@ -14,6 +15,7 @@ mod two_d;
 
 use std::fmt;
 
+pub use colormap::Colormap;
 pub use one_d::{Table1D, Transfer1D};
 pub use preintegrated::{Preintegrated, COLOR_ENTRIES, INTEGRAL_ENTRIES, MAX_EXTINCTION};
 pub use two_d::{Table2D, Transfer2D, Widget, WidgetShape};

@@ -30,6 +30,7 @@ use std::ops::ControlFlow;
 use super::crossing::{Entry, Hit};
 use super::root::illinois;
 use super::xray::finish;
+pub use super::CuedMip;
 use super::{Counts, Integrand, PixelRay};
 use crate::render::march::March;
 use crate::render::skip::MacroGrid;
@@ -49,6 +50,8 @@ pub enum Exact {
     },
     /// True maximum along the ray.
     Mip,
+    /// True maximum of the depth-weighted interpolant, and where it is.
+    CuedMip(CuedMip),
     /// True minimum along the ray.
     Minip,
     /// Integral divided by the ray's length.
@@ -170,6 +173,60 @@ impl Segment {
         for &r in &roots[..n] {
             best = pick(best, self.eval(r));
         }
+        best
+    }
+
+    /// The largest value over `[0, len]` of the interpolant weighted by `a + b s`,
+    /// and the first `s` where it is reached: a quartic, whose interior maxima are
+    /// roots of its cubic derivative. The roots of the derivative's own derivative
+    /// (a quadratic, solved like [`Segment::critical_points`]) split the segment
+    /// into pieces where the derivative is monotone; a piece where it falls from
+    /// positive to negative holds one maximum, found by bisection to round-off.
+    pub fn weighted_max(&self, a: f64, b: f64) -> (f64, f64) {
+        let [c0, c1, c2, c3] = self.c;
+        let q = [
+            a * c0,
+            a * c1 + b * c0,
+            a * c2 + b * c1,
+            a * c3 + b * c2,
+            b * c3,
+        ];
+        let g = |u: f64| q[0] + u * (q[1] + u * (q[2] + u * (q[3] + u * q[4])));
+        // the derivative as a cubic "segment": its critical points are the roots of
+        // the second derivative
+        let dg = Segment {
+            c: [q[1], 2.0 * q[2], 3.0 * q[3], 4.0 * q[4]],
+            t0: self.t0,
+            len: self.len,
+        };
+        let (cuts, n) = dg.critical_points();
+        let mut best = (g(0.0), 0.0);
+        let mut consider = |u: f64| {
+            let v = g(u);
+            if v > best.0 {
+                best = (v, u);
+            }
+        };
+        let mut x0 = 0.0;
+        for &x1 in cuts[..n].iter().chain([self.len].iter()) {
+            if dg.eval(x0) > 0.0 && dg.eval(x1) < 0.0 {
+                let (mut lo, mut hi) = (x0, x1);
+                for _ in 0..80 {
+                    let mid = 0.5 * (lo + hi);
+                    if mid <= lo || mid >= hi {
+                        break;
+                    }
+                    if dg.eval(mid) > 0.0 {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                consider(0.5 * (lo + hi));
+            }
+            x0 = x1;
+        }
+        consider(self.len);
         best
     }
 
@@ -401,6 +458,7 @@ impl Integrand for Exact {
     fn channels(&self) -> usize {
         match self {
             Exact::Surface { .. } => 4,
+            Exact::CuedMip(c) => c.channels(),
             _ => 1,
         }
     }
@@ -410,6 +468,7 @@ impl Integrand for Exact {
             // the line integral of nothing is zero
             Exact::Xray { output, .. } => [finish(0.0, *output, 1.0), 0.0, 0.0, 0.0],
             Exact::Surface { .. } => [0.0; 4],
+            Exact::CuedMip(c) => c.miss(),
             _ => [f32::NAN, 0.0, 0.0, 0.0],
         }
     }
@@ -476,6 +535,33 @@ impl Integrand for Exact {
                 );
                 let v = best.get().unwrap_or_else(|| entry_value(field, ray));
                 ([v as f32, 0.0, 0.0, 0.0], counts)
+            }
+            Exact::CuedMip(c) => {
+                let (cue, inv_d) = (c.cue, 1.0 / c.diameter);
+                // weights are in [1 - cue, 1]: a cell's weighted values are at most
+                let bound = |hi: f64| if hi >= 0.0 { hi } else { hi * (1.0 - cue) };
+                let best = std::cell::Cell::new(None::<(f64, f64)>);
+                // cells come in ray order: one that can only tie with the best comes
+                // after it, and a tie keeps the earlier point
+                let counts = walk_segments(
+                    field,
+                    ray,
+                    grid,
+                    |r| best.get().is_some_and(|(b, _)| bound(f64::from(r[1])) <= b),
+                    |s| {
+                        let a = 1.0 - cue * (s.t0 - ray.t_depth_ref) * inv_d;
+                        let (v, u) = s.weighted_max(a, -cue * inv_d);
+                        if best.get().is_none_or(|(b, _)| v > b) {
+                            best.set(Some((v, s.t0 + u)));
+                        }
+                        ControlFlow::Continue(())
+                    },
+                );
+                let (v, t) = best.get().unwrap_or_else(|| {
+                    let s = ((ray.t_enter - ray.t_depth_ref) * inv_d).clamp(0.0, 1.0);
+                    (entry_value(field, ray) * (1.0 - cue * s), ray.t_enter)
+                });
+                (c.finish(v as f32, t, ray), counts)
             }
             Exact::Depth { threshold } => {
                 let (hit, counts) = find_hit(field, ray, grid, *threshold);

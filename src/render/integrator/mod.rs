@@ -22,7 +22,7 @@ use glam::DVec3;
 pub use composite::{Composite, CompositeTable};
 pub use crossing::{Depth, Surface};
 pub use exact::Exact;
-pub use projection::{Average, Lmip, Minip, Mip};
+pub use projection::{Average, CuedMip, CuedOutput, Lmip, Minip, Mip};
 pub use xray::Xray;
 
 use super::clip::Cut;

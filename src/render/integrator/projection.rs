@@ -12,6 +12,7 @@ use super::{drive, Consumer, Counts, Integrand, PixelRay};
 use crate::render::march::{Lattice, March};
 use crate::render::skip::MacroGrid;
 use crate::sample::{CellCache, Field};
+use crate::transfer::Colormap;
 
 /// Maximum intensity projection.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -32,10 +33,179 @@ pub struct Lmip {
     pub threshold: f32,
 }
 
+/// Depth-cued MIP, and where its maximum is: each sample's value `f` at depth `s`
+/// (from the bounding sphere's entry) is weighted by `w(s) = 1 - cue * s / D`
+/// (`s / D` clamped to [0, 1], so `w` is in `[1 - cue, 1]`) before the maximum;
+/// the depth of the maximum is that of the first sample, in ray order, that
+/// reaches it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CuedMip {
+    /// `cue` in [0, 1] (0 = the plain maximum).
+    pub cue: f64,
+    /// `D`, the bounding sphere's diameter (world units).
+    pub diameter: f64,
+    /// What the pixel holds.
+    pub output: CuedOutput,
+}
+
+/// What a [`CuedMip`] pixel holds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CuedOutput {
+    /// The weighted maximum.
+    Value,
+    /// The depth `s` of the maximum.
+    Depth,
+    /// RGBA: `map(s / D)` times the maximum's brightness in `window`, alpha 1.
+    Coded {
+        /// The colour map of depth.
+        map: Colormap,
+        /// The values shown black and full brightness (normalised).
+        window: [f32; 2],
+    },
+}
+
+/// A cell's ranking for [`brightest_first`]: the consumer's best case over a cell
+/// whose values lie in `range` (larger = sampled sooner).
+trait Ranked: Consumer {
+    fn rank(&self, range: [f32; 2]) -> f32;
+    /// [`Consumer::skippable`] for a cell that lies before samples already taken
+    /// (the consumer's answer may depend on the order).
+    fn skippable_earlier(&self, range: [f32; 2]) -> bool {
+        self.skippable(0, range)
+    }
+}
+
+/// The running maximum of weighted samples and where it was first reached.
+struct WeightedMax {
+    cue: f64,
+    inv_diameter: f64,
+    t_ref: f64,
+    best: f32,
+    t_best: f64,
+    /// Whether the depth matters: then a cell whose bound equals the maximum and
+    /// that lies before the samples taken may hold an earlier sample that reaches
+    /// it (a cell after them may not: a tie keeps the earlier sample).
+    keep_ties: bool,
+}
+
+impl WeightedMax {
+    /// The largest weighted value a cell of `range` can give: weights are in
+    /// `[1 - cue, 1]`.
+    #[inline(always)]
+    fn bound(&self, range: [f32; 2]) -> f32 {
+        if range[1] >= 0.0 {
+            range[1]
+        } else {
+            (f64::from(range[1]) * (1.0 - self.cue)) as f32
+        }
+    }
+}
+
+impl Ranked for WeightedMax {
+    fn rank(&self, range: [f32; 2]) -> f32 {
+        self.bound(range)
+    }
+
+    fn skippable_earlier(&self, range: [f32; 2]) -> bool {
+        let b = self.bound(range);
+        if self.keep_ties {
+            b < self.best
+        } else {
+            b <= self.best
+        }
+    }
+}
+
+impl Consumer for WeightedMax {
+    /// For cells after every sample taken (the order of [`drive`]).
+    #[inline(always)]
+    fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
+        self.bound(range) <= self.best
+    }
+
+    #[inline(always)]
+    fn skip(&mut self, _i: usize, _j: usize) -> ControlFlow<()> {
+        ControlFlow::Continue(())
+    }
+
+    #[inline(always)]
+    fn take(&mut self, _i: usize, t: f64, f: f32) -> ControlFlow<()> {
+        let s = ((t - self.t_ref) * self.inv_diameter).clamp(0.0, 1.0);
+        let g = (f64::from(f) * (1.0 - self.cue * s)) as f32;
+        if g > self.best || (g == self.best && t < self.t_best) {
+            self.best = g;
+            self.t_best = t;
+        }
+        ControlFlow::Continue(())
+    }
+}
+
+impl CuedMip {
+    /// The pixel from the weighted maximum `best` first reached at `t_best`.
+    pub fn finish(&self, best: f32, t_best: f64, ray: &PixelRay) -> [f32; 4] {
+        let s = t_best - ray.t_depth_ref;
+        match self.output {
+            CuedOutput::Value => [best, 0.0, 0.0, 0.0],
+            CuedOutput::Depth => [s as f32, 0.0, 0.0, 0.0],
+            CuedOutput::Coded {
+                map,
+                window: [lo, hi],
+            } => {
+                let c = map.at(s / self.diameter);
+                let v = ((best - lo) / (hi - lo)).clamp(0.0, 1.0);
+                [c[0] * v, c[1] * v, c[2] * v, 1.0]
+            }
+        }
+    }
+}
+
+impl Integrand for CuedMip {
+    fn channels(&self) -> usize {
+        match self.output {
+            CuedOutput::Coded { .. } => 4,
+            _ => 1,
+        }
+    }
+
+    #[inline]
+    fn trace<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], Counts) {
+        let mut e = WeightedMax {
+            cue: self.cue,
+            inv_diameter: 1.0 / self.diameter,
+            t_ref: ray.t_depth_ref,
+            best: f32::NEG_INFINITY,
+            t_best: f64::INFINITY,
+            keep_ties: self.output != CuedOutput::Value,
+        };
+        let nominal = march.len() as u64;
+        let taken = drive_ranked(field, ray, march, grid, &mut e);
+        (
+            self.finish(e.best, e.t_best, ray),
+            Counts { taken, nominal },
+        )
+    }
+}
+
 /// The running extremum of the samples.
 struct Extremum {
     best: f32,
     max: bool,
+}
+
+impl Ranked for Extremum {
+    fn rank(&self, range: [f32; 2]) -> f32 {
+        if self.max {
+            range[1]
+        } else {
+            -range[0]
+        }
+    }
 }
 
 impl Consumer for Extremum {
@@ -87,14 +257,26 @@ fn extremum<F: Field>(
         max,
     };
     let nominal = march.len() as u64;
-    let taken = match grid {
-        Some(g) => match brightest_first(field, ray, march, g, &mut e) {
-            Some(taken) => taken,
-            None => drive(march, field, ray, grid, &mut e),
-        },
-        None => drive(march, field, ray, None, &mut e),
-    };
+    let taken = drive_ranked(field, ray, march, grid, &mut e);
     ([e.best, 0.0, 0.0, 0.0], Counts { taken, nominal })
+}
+
+/// Hands `e` the ray's samples, the most promising macrocell first when the pass
+/// skips ([`brightest_first`]), else in order; returns the samples taken.
+fn drive_ranked<F: Field, C: Ranked>(
+    field: &F,
+    ray: &PixelRay,
+    march: &March,
+    grid: Option<&MacroGrid>,
+    e: &mut C,
+) -> u64 {
+    match grid {
+        Some(g) => match brightest_first(field, ray, march, g, e) {
+            Some(taken) => taken,
+            None => drive(march, field, ray, grid, e),
+        },
+        None => drive(march, field, ray, None, e),
+    }
 }
 
 /// Most macrocells a ray's spans are listed for (a 512^3 volume's diagonal crosses
@@ -103,18 +285,19 @@ const MAX_SPANS: usize = 320;
 
 /// The extremum is the same whatever order the samples come in, and it grows fastest
 /// from the cell that can hold the largest value: the ray's macrocells are listed
-/// first, the one with the largest extreme of its range (the maximum for MIP, the
-/// minimum for MinIP) is sampled first, then the others in order, each passed over
-/// when it cannot beat the running extremum. The samples are those of the march; the
-/// result is the same bits as in order. Returns the samples taken, or `None` (nothing
+/// first, the one with the largest extreme of its range (its [`Ranked::rank`]: the
+/// maximum for MIP, the minimum for MinIP, the bound of the weighted values for
+/// depth-cued MIP) is sampled first, then the others in order, each passed over
+/// when it cannot beat the running extremum. The samples are those of the march, and
+/// a tie keeps the earlier sample; the result is the same bits as in order. Returns the samples taken, or `None` (nothing
 /// taken) when the ray crosses more than [`MAX_SPANS`] macrocells (or has more than
 /// 2^32 samples).
-fn brightest_first<F: Field>(
+fn brightest_first<F: Field, C: Ranked>(
     field: &F,
     ray: &PixelRay,
     march: &March,
     grid: &MacroGrid,
-    e: &mut Extremum,
+    e: &mut C,
 ) -> Option<u64> {
     let n = march.len();
     if n > u32::MAX as usize || grid.len() > u32::MAX as usize {
@@ -135,8 +318,7 @@ fn brightest_first<F: Field>(
             if count == MAX_SPANS {
                 return None;
             }
-            let [lo, hi] = grid.range(span.cell);
-            let key = if e.max { hi } else { -lo };
+            let key = e.rank(grid.range(span.cell));
             if key > best_key {
                 (best_key, best_span) = (key, count);
             }
@@ -157,8 +339,9 @@ fn brightest_first<F: Field>(
         unsafe { &*(std::ptr::addr_of!(spans[..count]) as *const [(u32, u32, u32)]) };
     let mut taken = 0u64;
     let mut cache = CellCache::default();
-    let mut sample = |e: &mut Extremum, (a, b, cell): (u32, u32, u32)| {
-        if e.skippable(0, grid.range(cell as usize)) {
+    let mut sample = |e: &mut C, (a, b, cell): (u32, u32, u32), earlier: bool| {
+        let range = grid.range(cell as usize);
+        if (earlier && e.skippable_earlier(range)) || (!earlier && e.skippable(0, range)) {
             return;
         }
         for k in a as usize..b as usize {
@@ -167,10 +350,10 @@ fn brightest_first<F: Field>(
         }
         taken += u64::from(b - a);
     };
-    sample(e, spans[best_span]);
+    sample(e, spans[best_span], false);
     for (s, &span) in spans.iter().enumerate() {
         if s != best_span {
-            sample(e, span);
+            sample(e, span, s < best_span);
         }
     }
     Some(taken)

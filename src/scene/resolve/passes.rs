@@ -4,8 +4,10 @@ use super::*;
 
 /// Which render modes use each mode-specific key of `[[render]]`.
 const MODE_KEYS: &[(&str, &[&str])] = &[
-    ("output", &["xray"]),
+    ("output", &["xray", "mip"]),
     ("mu", &["xray"]),
+    ("depth_cue", &["mip"]),
+    ("colormap", &["mip"]),
     ("threshold", &["lmip", "depth"]),
     ("iso", &["surface"]),
     ("material", &["surface", "composite"]),
@@ -41,7 +43,10 @@ impl Resolver<'_> {
         let Some(tables) = tables else {
             return vec![RenderPass {
                 name: "mip".into(),
-                mode: Mode::Mip,
+                mode: Mode::Mip {
+                    depth_cue: 0.0,
+                    output: MipOutput::Value,
+                },
                 step_voxels: 0.5,
                 interpolation: Interpolation::Trilinear,
                 window: None,
@@ -158,7 +163,10 @@ impl Resolver<'_> {
         );
         let window = self.window("window", &v.window).and_then(|w| {
             // the grey window of a value-based pass is on the value axis
+            // (a MIP's depth of the maximum is a distance, like a depth pass's)
+            let distance = v.output.as_ref().map(|o| o.get_ref().as_str()) == Some("depth-of-max");
             if !matches!(mode_name, "mip" | "minip" | "average" | "lmip")
+                || distance
                 || self.units == Units::Normalised
             {
                 return Some(w);
@@ -183,7 +191,7 @@ impl Resolver<'_> {
                 ),
                 mu: self.number("mu", &v.mu, 1.0, |x| x >= 0.0, "an attenuation scale >= 0"),
             },
-            "mip" => Mode::Mip,
+            "mip" => self.mip(v),
             "minip" => Mode::Minip,
             "average" => Mode::Average,
             "lmip" => Mode::Lmip {
@@ -285,6 +293,51 @@ impl Resolver<'_> {
             integration,
             jitter,
         })
+    }
+
+    /// A MIP pass's depth cue and output.
+    fn mip(&mut self, v: &RenderTable) -> Mode {
+        let depth_cue = self.number(
+            "depth_cue",
+            &v.depth_cue,
+            0.0,
+            |c| (0.0..=1.0).contains(&c),
+            "a weight from 0 (no depth cue) to 1 (the far side of the bounding sphere weighted 0)",
+        );
+        #[derive(Clone, Copy)]
+        enum Out {
+            Value,
+            DepthOfMax,
+            DepthCoded,
+        }
+        let out = self.choice(
+            "output",
+            &v.output,
+            &[
+                ("value", Out::Value),
+                ("depth-of-max", Out::DepthOfMax),
+                ("depth-coded", Out::DepthCoded),
+            ],
+            Out::Value,
+        );
+        let map = self.choice(
+            "colormap",
+            &v.colormap,
+            crate::transfer::Colormap::ALL,
+            crate::transfer::Colormap::Turbo,
+        );
+        let output = match out {
+            Out::Value => MipOutput::Value,
+            Out::DepthOfMax => MipOutput::DepthOfMax,
+            Out::DepthCoded => MipOutput::DepthCoded(map),
+        };
+        if let (Some(c), false) = (&v.colormap, matches!(out, Out::DepthCoded)) {
+            self.err(
+                c.span(),
+                "`colormap` colours the depth of the maximum: it needs output = \"depth-coded\"",
+            );
+        }
+        Mode::Mip { depth_cue, output }
     }
 
     /// Combinations of integration, interpolation and jitter that do not work.
