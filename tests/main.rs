@@ -22,3 +22,4 @@ mod skipping;
 mod special_files;
 mod stereo;
 mod units;
+mod viewer;
