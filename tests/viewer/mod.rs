@@ -277,9 +277,15 @@ fn errors(b: &Browser) -> Vec<String> {
 /// loaded or failed; returns (loaded, failed, total).
 fn open(b: &Browser, index: &Path) -> (u64, u64, u64) {
     b.goto(&file_url(index));
+    all_loaded(b, Duration::from_secs(10))
+}
+
+/// Waits until every image of the pass shown is loaded or failed; returns
+/// (loaded, failed, total).
+fn all_loaded(b: &Browser, timeout: Duration) -> (u64, u64, u64) {
     b.wait_for(
         "const c = window.volcastViewer && window.volcastViewer.counts(); return !!c && c.loaded + c.failed === c.total;",
-        Duration::from_secs(10),
+        timeout,
         "the frames to load",
     );
     let c = b.eval("return window.volcastViewer.counts();", json!([]));
@@ -407,4 +413,120 @@ fn in_chromium_the_page_turns_under_drag_and_keys_and_shows_every_frame() {
     assert_eq!(b.attribute(&canvas, "data-frame"), "6");
     assert_eq!(b.attribute(&canvas, "data-state"), "ok");
     assert_shows(&shot(&canvas), &gold, 6, "after a missing frame");
+}
+
+/// A 16 x 16 grey PNG of one level.
+fn grey_png(level: u8) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    let mut e = png::Encoder::new(&mut bytes, 16, 16);
+    e.set_color(png::ColorType::Grayscale);
+    let mut w = e.write_header().unwrap();
+    w.write_image_data(&[level; 256]).unwrap();
+    w.finish().unwrap();
+    bytes
+}
+
+#[test]
+fn in_chromium_a_page_of_3000_frames_stays_responsive() {
+    use volcast::output::manifest::{FileRecord, FrameRecord, ViewRecord};
+    let Some((chromium, driver)) = browser_tools() else {
+        return;
+    };
+    const N: usize = 3000;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // frame k is a flat grey of level k % 251, so the picture tells the frame
+    let level = |k: usize| (k % 251) as u8;
+    let scene = volcast::scene::parse(
+        &format!("[volume]\nsynthetic = \"ball\"\n[orbit]\nframes = {N}\n[image]\nsize = [16, 16]\n[[render]]\nmode = \"mip\"\n"),
+        &d.join("many.toml"),
+    )
+    .unwrap();
+    let records: Vec<FrameRecord> = (0..N)
+        .map(|k| {
+            let name = format!("mip_{k:04}.png");
+            std::fs::write(d.join(&name), grey_png(level(k))).unwrap();
+            FrameRecord {
+                scene_hash: String::new(),
+                volcast_version: String::new(),
+                pass: "mip".into(),
+                frame: k,
+                files: vec![FileRecord {
+                    name,
+                    bytes: 0,
+                    sha256: String::new(),
+                }],
+                views: vec![ViewRecord {
+                    eye: "mono".into(),
+                    view: (k as i64, "mono".into()),
+                    azimuth_deg: k as f64 * 360.0 / N as f64,
+                    elevation_deg: 0.0,
+                    projection: "perspective".into(),
+                    eye_position: [0.0; 3],
+                    forward: [0.0; 3],
+                    right: [0.0; 3],
+                    up: [0.0; 3],
+                    half_width: 1.0,
+                    half_height: 1.0,
+                    window_shift: 0.0,
+                    target_distance: 1.0,
+                    samples: 0,
+                }],
+                window: None,
+                samples: 0,
+                seconds: 0.0,
+                shard: None,
+            }
+        })
+        .collect();
+    let data = volcast::output::viewer::page_data(&scene, (16, 16), &records);
+    std::fs::write(d.join("index.html"), volcast::output::viewer::page(&data)).unwrap();
+
+    let b = Browser::start(&chromium, &driver, 640, 480);
+    let t0 = std::time::Instant::now();
+    b.goto(&file_url(&d.join("index.html")));
+    b.wait_for(
+        "return document.getElementById('view').dataset.state === 'ok';",
+        Duration::from_secs(5),
+        "the first frame",
+    );
+    let first = t0.elapsed();
+    // shown at once: while most frames are still to come
+    let c = b.eval("return window.volcastViewer.counts();", json!([]));
+    assert!(c["loaded"].as_u64().unwrap() < N as u64 / 2, "{c}");
+    // preloading goes on in the background, a few images at a time; the page has
+    // no element per frame
+    let elements = b.eval(
+        "return document.getElementsByTagName('*').length;",
+        json!([]),
+    );
+    assert!(elements.as_u64().unwrap() < 100, "{elements} elements");
+    // a hundred steps take milliseconds, while the frames still load
+    let ms = b.eval(
+        "const t = performance.now(); for (let i = 0; i < 100; i++) document.dispatchEvent(new KeyboardEvent('keydown', { key: 'ArrowLeft' })); return performance.now() - t;",
+        json!([]),
+    );
+    assert!(ms.as_f64().unwrap() < 500.0, "100 key steps took {ms} ms");
+    let canvas = b.find("#view");
+    assert_eq!(b.attribute(&canvas, "data-frame"), "100");
+    // a real key press and a drag reach frames by wrapping around
+    b.press(ARROW_RIGHT);
+    assert_eq!(b.attribute(&canvas, "data-frame"), "99");
+    b.drag(&canvas, 0, 0, -8, 2); // half the view's width: 1500 frames on
+    assert_eq!(b.attribute(&canvas, "data-frame"), "1599");
+    let counts = all_loaded(&b, Duration::from_secs(30));
+    let all = t0.elapsed();
+    assert_eq!(counts, (N as u64, 0, N as u64));
+    let shot = decode(&b.screenshot(Some(&canvas)));
+    assert!(
+        shot.data.iter().all(|&v| v == level(1599)),
+        "frame 1599 is grey {}",
+        level(1599)
+    );
+    assert_eq!(errors(&b), Vec::<String>::new());
+    eprintln!(
+        "3000 frames: the first shown after {:.2} s, all loaded after {:.2} s",
+        first.as_secs_f64(),
+        all.as_secs_f64()
+    );
 }
