@@ -530,3 +530,27 @@ fn in_chromium_a_page_of_3000_frames_stays_responsive() {
         all.as_secs_f64()
     );
 }
+
+/// The README's picture of the page: `docs/make_images.sh` renders
+/// `scenes/golden_skull.toml` and runs this with `VOLCAST_VIEWER_PAGE` (its
+/// index.html) and `VOLCAST_VIEWER_PICTURE` (the PNG to write).
+#[test]
+#[ignore = "writes the README's picture; run by docs/make_images.sh"]
+fn viewer_picture_for_the_readme() {
+    let page = PathBuf::from(std::env::var("VOLCAST_VIEWER_PAGE").expect("VOLCAST_VIEWER_PAGE"));
+    let picture =
+        PathBuf::from(std::env::var("VOLCAST_VIEWER_PICTURE").expect("VOLCAST_VIEWER_PICTURE"));
+    let (chromium, driver) = browser_tools().expect("chromium and chromedriver");
+    let b = Browser::start(&chromium, &driver, 520, 560);
+    let (loaded, failed, total) = open(&b, &page);
+    assert_eq!((loaded, failed), (total, 0));
+    // turn it a little: a drag to the left, 4 frames on
+    let canvas = b.find("#view");
+    let width = b.eval("return document.getElementById('view').width;", json!([]));
+    let frames = b.eval("return DATA.frames;", json!([]));
+    let dx = -(4 * width.as_i64().unwrap() / frames.as_i64().unwrap());
+    b.drag(&canvas, 0, 0, dx, 4);
+    assert_eq!(b.attribute(&canvas, "data-frame"), "4");
+    assert_eq!(errors(&b), Vec::<String>::new());
+    std::fs::write(&picture, b.screenshot(None)).unwrap();
+}
