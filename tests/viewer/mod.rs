@@ -68,6 +68,32 @@ fn the_page_is_written_once_complete_and_shards_and_resume_give_its_bytes() {
         at += i;
     }
     assert_eq!(manifest["viewer"], "index.html");
+    // a drag to the right must bring the near side of the object to the right: from
+    // the recorded views, a point on the near side at frame 0 lies left of the
+    // centre at frame 1, so the page steps back (`grab` -1) for a drag to the right
+    let v = |k: usize, key: &str| -> Vec<f64> {
+        let x = &manifest["frames"][k]["views"][0][key];
+        match x.as_array() {
+            Some(a) => a.iter().map(|c| c.as_f64().unwrap()).collect(),
+            None => vec![x.as_f64().unwrap()],
+        }
+    };
+    let (eye0, forward0, d0) = (
+        v(0, "eye_position"),
+        v(0, "forward"),
+        v(0, "target_distance")[0],
+    );
+    let near: Vec<f64> = (0..3).map(|i| eye0[i] + forward0[i] * (d0 - 0.5)).collect();
+    let (eye1, right1) = (v(1, "eye_position"), v(1, "right"));
+    let x1: f64 = (0..3).map(|i| (near[i] - eye1[i]) * right1[i]).sum();
+    assert!(
+        x1 < -0.1,
+        "the near side moves left from frame 0 to 1 ({x1})"
+    );
+    assert!(
+        page.contains("\"grab\":-1"),
+        "a drag to the right steps back"
+    );
     // two shards: no page after the first, the second completes it, same bytes
     let o = volcast(d, &["render", "spin.toml", "--out", "sh", "--shard", "0/2"]);
     assert!(o.status.success());
