@@ -379,6 +379,11 @@ fn in_chromium_the_page_turns_under_drag_and_keys_and_shows_every_frame() {
         text.contains("frame 9 of 12") && text.contains("azimuth 270.0°"),
         "{text}"
     );
+    // a finger does the same: a touch drag of 2 frames' width to the left, and back
+    b.drag_with("touch", &canvas, 20, 0, -16, 4);
+    assert_eq!(b.attribute(&canvas, "data-frame"), "11");
+    b.drag_with("touch", &canvas, 0, 10, 16, 4);
+    assert_eq!(b.attribute(&canvas, "data-frame"), "9");
     // the left arrow turns the other way, wrapping around after frame 11
     for _ in 0..3 {
         b.press(ARROW_LEFT);

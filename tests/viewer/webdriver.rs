@@ -250,6 +250,11 @@ impl Browser {
     /// A real mouse drag: press at `(x, y)` from the centre of `e`, move by `dx`
     /// pixels to the right in `steps` moves, release.
     pub fn drag(&self, e: &Element, x: i64, y: i64, dx: i64, steps: i64) {
+        self.drag_with("mouse", e, x, y, dx, steps);
+    }
+
+    /// [`Browser::drag`] with a `"mouse"`, `"pen"` or `"touch"` pointer.
+    pub fn drag_with(&self, pointer: &str, e: &Element, x: i64, y: i64, dx: i64, steps: i64) {
         let origin = json!({ ELEMENT: e.0 });
         let mut actions = vec![
             json!({ "type": "pointerMove", "duration": 0, "origin": origin, "x": x, "y": y }),
@@ -263,7 +268,7 @@ impl Browser {
         }
         actions.push(json!({ "type": "pointerUp", "button": 0 }));
         self.actions(json!([{
-            "type": "pointer", "id": "mouse", "parameters": { "pointerType": "mouse" },
+            "type": "pointer", "id": pointer, "parameters": { "pointerType": pointer },
             "actions": actions,
         }]));
     }
