@@ -577,7 +577,7 @@ fn viewer_picture_for_the_readme() {
     assert_eq!((loaded, failed), (total, 0));
     // turn it a little: a drag to the left, 4 frames on
     let canvas = b.find("#view");
-    let width = b.eval("return document.getElementById('view').width;", json!([]));
+    let width = b.eval("return DATA.width;", json!([]));
     let frames = b.eval("return DATA.frames;", json!([]));
     let dx = -(4 * width.as_i64().unwrap() / frames.as_i64().unwrap());
     b.drag(&canvas, 0, 0, dx, 4);
