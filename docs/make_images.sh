@@ -25,4 +25,9 @@ cp "$tmp/composite_engine_bone/bone_0000.png"      docs/images/composite.png
 cp "$tmp/transfer_2d/composite_0000.png"           docs/images/composite_2d.png
 cp "$tmp/marschner_lobb/trilinear_0000.png"        docs/images/ml_trilinear.png
 cp "$tmp/marschner_lobb/cubic_0000.png"            docs/images/ml_cubic.png
+# the turntable page of the golden skull (all 36 frames), photographed in headless
+# Chromium by the browser test's tooling (needs chromium and chromedriver)
+"$VOLCAST" render --quiet --size 256x256 --viewer --out "$tmp/skull_viewer" scenes/golden_skull.toml
+VOLCAST_VIEWER_PAGE="$tmp/skull_viewer/index.html" VOLCAST_VIEWER_PICTURE="$PWD/docs/images/viewer.png" \
+  cargo test --quiet --test integration viewer_picture_for_the_readme -- --ignored
 echo "pictures written to docs/images/"

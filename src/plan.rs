@@ -56,6 +56,9 @@ pub struct RunOptions {
     pub finish_only: bool,
     /// The folder the volume's files and the output folder must lie in (`--confine`).
     pub confine: Option<std::path::PathBuf>,
+    /// Write the turntable page `index.html` even if the scene has no `[viewer]`
+    /// (`--viewer`).
+    pub viewer: bool,
 }
 
 /// The plan of a run.
@@ -77,6 +80,9 @@ pub struct Plan {
     pub height: usize,
     /// Output folder.
     pub out: std::path::PathBuf,
+    /// Whether the run writes the turntable page `{out}/index.html` once every frame
+    /// exists (`[viewer] html` or `--viewer`).
+    pub viewer: bool,
     /// One render pass per scene pass, in order.
     pub passes: Vec<RenderPass>,
     /// Per pass: whether its grey window comes from a preview pass.
@@ -181,6 +187,12 @@ impl Plan {
                     "[animation] gif: GIF images are at most 65535 pixels wide and high, these frames are {file_width} x {height} (use formats = [\"apng\"] or a smaller size)"
                 )));
             }
+        }
+        let viewer = scene.viewer || opts.viewer;
+        if viewer && scene.image.format == Format::Nrrd {
+            return Err(fail(
+                "--viewer: the turntable page shows the PNG frames in a browser, and this scene writes nrrd (browsers cannot show it): use [image] format = \"png\" or \"png16\"".into(),
+            ));
         }
         let voxel_length = geometry
             .spacings()
@@ -363,6 +375,7 @@ impl Plan {
             width,
             height,
             out,
+            viewer,
             passes,
             auto_window,
             frame,
@@ -595,7 +608,11 @@ impl Plan {
                 let _ = writeln!(s, "               {n}");
             }
         }
-        s.push_str(&crate::output::describe_outputs(scene, &self.out));
+        s.push_str(&crate::output::describe_outputs(
+            scene,
+            &self.out,
+            self.viewer,
+        ));
         let mut parts: Vec<String> = Vec::new();
         if let crate::volume::Storage::Mapped { path, bytes, .. } = &self.storage {
             parts.push(format!(

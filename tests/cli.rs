@@ -62,6 +62,11 @@ fn decode_all(dir: &Path) -> usize {
                     serde_json::from_slice(&std::fs::read(&p).unwrap()).expect("a JSON manifest");
                 continue;
             }
+            Some("html") if name == "index.html" => {
+                let page = std::fs::read_to_string(&p).unwrap();
+                assert!(page.starts_with("<!DOCTYPE html>"), "{}", p.display());
+                continue;
+            }
             Some("png") => {
                 image::open(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
             }

@@ -24,3 +24,4 @@ mod skipping;
 mod special_files;
 mod stereo;
 mod units;
+mod viewer;

@@ -120,6 +120,10 @@ pub struct SceneArgs {
     /// images, slower; for comparisons and benchmarks).
     #[arg(long)]
     pub no_skip: bool,
+    /// Also write {out}/index.html, a self-contained page that turns the object in
+    /// a browser (as [viewer] html = true in the scene), once every frame exists.
+    #[arg(long)]
+    pub viewer: bool,
 }
 
 /// A `--shard` value.

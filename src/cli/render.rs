@@ -37,6 +37,7 @@ pub(super) fn prepare(
         no_view_reuse: a.no_view_reuse,
         no_skip: a.no_skip,
         confine: a.confine.clone(),
+        viewer: a.viewer,
         ..Default::default()
     };
     let mut limits = volcast::volume::Limits::default();
@@ -225,7 +226,7 @@ fn report(summary: &pipeline::Summary) {
             }
         } else {
             say!(
-                "volcast: manifest {}: {} of {} images done; the rest come from other shards or runs (animations are assembled once every frame exists: rerun with --resume to finish)",
+                "volcast: manifest {}: {} of {} images done; the rest come from other shards or runs (animations and the viewer page are written once every frame exists: rerun with --resume to finish)",
                 m.path.display(),
                 m.done,
                 m.total
@@ -238,6 +239,12 @@ fn report(summary: &pipeline::Summary) {
             a.path.display(),
             a.frames,
             (a.fps * 1000.0).round() / 1000.0
+        );
+    }
+    if let Some(page) = &summary.viewer {
+        say!(
+            "volcast: viewer {}: open it in a browser, drag or use the arrow keys to turn the object",
+            page.display()
         );
     }
     for n in &summary.notes {

@@ -14,8 +14,8 @@
 //!
 //! The scene hash ([`scene_digest`] then [`data_digest`]) is a SHA-256 over a
 //! canonical encoding of the scene as parsed (comments, spacing and key order do
-//! not matter; `[image] out` and `[animation]` are left out because they do not
-//! change any image), the volume's header, the image size, the program version and
+//! not matter; `[image] out`, `[animation]` and `[viewer]` are left out because
+//! they do not change any image), the volume's header, the image size, the program version and
 //! the voxel data's XXH3-128 (computed while the data is decoded; a run with nothing
 //! left to render may take it from `manifest.json` when the volume's files have the
 //! size and modification time recorded there). `--resume` skips a (pass, frame) only
@@ -340,6 +340,7 @@ pub fn scene_digest(scene: &Scene, header: &VolumeHeader, width: usize, height: 
                 image.remove("out");
             }
             table.remove("animation");
+            table.remove("viewer");
             h.update(b"T");
             put_toml(&mut h, &toml::Value::Table(table));
         }
@@ -706,9 +707,19 @@ pub fn write_manifest(
 
 /// Writes `manifest.json` atomically; a link there is an error, not replaced.
 fn write_manifest_file(out: &Path, text: &[u8]) -> Result<(), Error> {
-    let path = out.join(MANIFEST);
-    let folder = out_folder(out)?;
-    if folder.kind_of(MANIFEST) == Some(Kind::Link) {
+    write_unlinked(&out_folder(out)?, out, MANIFEST, text)
+}
+
+/// Writes `name` into `folder` (the output folder `out`) atomically; a link there
+/// is an error, not replaced.
+pub(crate) fn write_unlinked(
+    folder: &Folder,
+    out: &Path,
+    name: &str,
+    bytes: &[u8],
+) -> Result<(), Error> {
+    let path = out.join(name);
+    if folder.kind_of(name) == Some(Kind::Link) {
         return Err(Error::Output {
             path: path.clone(),
             source: std::io::Error::other(format!(
@@ -718,7 +729,7 @@ fn write_manifest_file(out: &Path, text: &[u8]) -> Result<(), Error> {
         });
     }
     folder
-        .write_atomic(MANIFEST, text)
+        .write_atomic(name, bytes)
         .map_err(|source| Error::Output { path, source })
 }
 
@@ -815,11 +826,12 @@ mod tests {
             "[volume]\nsynthetic = \"ball\"\nsizes = [4, 4, 4]\n[[render]]\nmode = \"mip\"\n";
         let d = digest(base);
         assert_eq!(d.len(), 64);
-        // comments, spacing, key order, the output folder and the animation do not count
+        // comments, spacing, key order, the output folder, the animation and the
+        // viewer page do not count
         assert_eq!(
             d,
             digest(
-                "# a comment\n[volume]\nsizes = [4,4,4]\nsynthetic = \"ball\"\n\n[[render]]\nmode = \"mip\"  # mip\n[animation]\nfps = 12\n"
+                "# a comment\n[volume]\nsizes = [4,4,4]\nsynthetic = \"ball\"\n\n[[render]]\nmode = \"mip\"  # mip\n[animation]\nfps = 12\n[viewer]\nhtml = true\n"
             )
         );
         assert_eq!(

@@ -8,6 +8,7 @@ pub mod display;
 pub mod encode;
 pub mod manifest;
 pub mod stereo;
+pub mod viewer;
 pub mod write;
 
 pub use display::{DisplayKind, Window};
@@ -112,9 +113,9 @@ pub fn describe_stereo(scene: &Scene) -> String {
     format!("{method}; layout {layout}")
 }
 
-/// Lines describing the manifest, animations and ffmpeg commands of a run into
-/// `out` (for `volcast check`).
-pub fn describe_outputs(scene: &Scene, out: &Path) -> String {
+/// Lines describing the manifest, animations, turntable page (when `viewer`) and
+/// ffmpeg commands of a run into `out` (for `volcast check`).
+pub fn describe_outputs(scene: &Scene, out: &Path, viewer: bool) -> String {
     use std::fmt::Write as _;
     let mut s = String::new();
     let _ = writeln!(
@@ -149,6 +150,13 @@ pub fn describe_outputs(scene: &Scene, out: &Path) -> String {
             files.join(", "),
             a.fps,
             if a.looping { "looping" } else { "playing once" }
+        );
+    }
+    if viewer {
+        let _ = writeln!(
+            s,
+            "viewer   {}: a turntable page to open in a browser (drag or arrow keys turn the object), written once every frame exists",
+            out.join(viewer::PAGE).display()
         );
     }
     if scene.image.format != Format::Nrrd {

@@ -38,7 +38,7 @@ use crate::output::display::{to_display, DisplayKind, Window};
 use crate::output::manifest::{
     self, FileRecord, FrameRecord, ManifestHead, ManifestStatus, ViewRecord,
 };
-use crate::output::{encode, frame_path, stereo, write_atomic, Eye};
+use crate::output::{encode, frame_path, stereo, viewer, write_atomic, Eye};
 use crate::plan::{Plan, RunOptions};
 use crate::render::{Film, ImageKind, RenderView, Resources, View};
 use crate::sample::Normalize;
@@ -85,6 +85,8 @@ pub struct Summary {
     pub manifest: Option<ManifestStatus>,
     /// Animations written by this run.
     pub animations: Vec<animation::Written>,
+    /// The turntable page, when the run wrote it (`[viewer] html`, `--viewer`).
+    pub viewer: Option<PathBuf>,
     /// The ffmpeg command that makes an MP4 of each image sequence (none for NRRD).
     pub ffmpeg: Vec<String>,
     /// Things worth telling the user (unreadable records, removed temporaries).

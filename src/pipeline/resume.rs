@@ -1,6 +1,6 @@
 //! Which (pass, frame) images remain to be rendered (`--resume`), what identifies
 //! the voxels they were rendered from, and what a run does once its images are
-//! written: merge the manifest, assemble the animations.
+//! written: merge the manifest, assemble the animations, write the turntable page.
 
 use super::*;
 
@@ -123,6 +123,8 @@ pub(super) fn remove_empty_folders(folders: &[PathBuf]) {
 /// once, whole), and assemble the animations when the sequence is complete and they
 /// are missing, damaged or out of date: their bytes differ from their record, the
 /// `[animation]` settings changed, or the frames they hold are not the frames now.
+/// The turntable page is written from the merged records whenever the sequence is
+/// complete (it is small, and the same records give the same bytes).
 pub(super) fn finish(
     scene: &Scene,
     plan: &Plan,
@@ -169,8 +171,14 @@ pub(super) fn finish(
     };
     let folder = manifest::out_folder(out)?;
     let mut assembled: Vec<animation::Written> = Vec::new();
+    let mut page = None;
     let mut extra = |status: &ManifestStatus, records: &[FrameRecord]| {
         let mut e = json!({ "ffmpeg": &ffmpeg });
+        if plan.viewer && status.complete() {
+            let size = (plan.width, plan.height);
+            page = Some(viewer::write_page(&folder, out, scene, size, records)?);
+            e["viewer"] = json!(viewer::PAGE);
+        }
         if let (Some(anim), true) = (&scene.animation, status.complete()) {
             let entries = animation_entries(
                 scene,
@@ -193,6 +201,7 @@ pub(super) fn finish(
             .map(|u| format!("{u} (that frame counts as missing)")),
     );
     summary.animations = assembled;
+    summary.viewer = page;
     summary.manifest = Some(status);
     summary.ffmpeg = ffmpeg;
     Ok(())

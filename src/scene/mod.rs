@@ -46,6 +46,9 @@ pub struct Scene {
     pub clips: Vec<Clip>,
     /// Animated files to assemble from each pass's frames, when requested.
     pub animation: Option<Animation>,
+    /// Write `{out}/index.html`, a turntable page for the browser, once every frame
+    /// exists (`[viewer] html`; `--viewer` sets it too).
+    pub viewer: bool,
     /// The scene file's text as read (recorded in the output's manifest and hashed
     /// to decide whether existing images belong to this scene).
     pub text: String,

@@ -29,6 +29,7 @@ pub struct SceneFile {
     pub material: BTreeMap<String, Spanned<MaterialTable>>,
     pub light: Option<Spanned<LightTable>>,
     pub animation: Option<Spanned<AnimationTable>>,
+    pub viewer: Option<Spanned<ViewerTable>>,
     pub clip: Option<Vec<Spanned<ClipTable>>>,
 }
 
@@ -105,6 +106,12 @@ pub struct AnimationTable {
     pub fps: Sp<f64>,
     #[serde(rename = "loop")]
     pub looping: Sp<bool>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewerTable {
+    pub html: Sp<bool>,
 }
 
 #[derive(Debug, Deserialize)]

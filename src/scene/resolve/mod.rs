@@ -2,8 +2,8 @@
 //! defaults, ranges, names, cross-references and mode-specific keys. Every problem
 //! is collected with its place in the file; the scene is returned only if there
 //! are none. One submodule per part of the scene: [`volume`], [`view`] (camera,
-//! orbit, image, stereo, animation, light), [`appearance`] (materials and transfer
-//! functions), [`passes`] and [`clip`].
+//! orbit, image, stereo, animation, viewer, light), [`appearance`] (materials and
+//! transfer functions), [`passes`] and [`clip`].
 
 mod appearance;
 mod clip;
@@ -70,6 +70,10 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         .animation
         .as_ref()
         .map(|a| r.animation(a, image.format));
+    let viewer = file
+        .viewer
+        .as_ref()
+        .is_some_and(|v| r.viewer(v, image.format));
     let light = r.light(file.light.as_ref());
     let materials = r.materials(&file.material);
     let transfers = r.transfers(&file.transfer);
@@ -98,6 +102,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         light,
         clips,
         animation,
+        viewer,
         text: text.to_string(),
         warnings: r.warnings,
     })

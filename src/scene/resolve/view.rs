@@ -1,4 +1,5 @@
-//! `[camera]`, `[orbit]`, `[image]`, `[stereo]`, `[animation]` and `[light]`.
+//! `[camera]`, `[orbit]`, `[image]`, `[stereo]`, `[animation]`, `[viewer]` and
+//! `[light]`.
 
 use super::*;
 
@@ -362,6 +363,20 @@ impl Resolver<'_> {
             fps,
             looping: v.looping.as_ref().is_none_or(|l| *l.get_ref()),
         }
+    }
+
+    /// `[viewer]`: whether to write the turntable page (`html`, default `true` when the
+    /// table is there).
+    pub(super) fn viewer(&mut self, t: &Spanned<ViewerTable>, format: Format) -> bool {
+        let html = t.get_ref().html.as_ref().is_none_or(|h| *h.get_ref());
+        if html && format == Format::Nrrd {
+            let span = t.get_ref().html.as_ref().map_or(t.span(), |h| h.span());
+            self.err(
+                span,
+                "[viewer] html = true shows the PNG frames in a browser: use format = \"png\" or \"png16\" (browsers cannot show nrrd frames)",
+            );
+        }
+        html
     }
 
     pub(super) fn light(&mut self, t: Option<&Spanned<LightTable>>) -> LightSpec {
