@@ -25,7 +25,7 @@ use crate::output::Eye;
 use crate::render::pass::GridSource;
 use crate::render::skip::MacroGrid;
 use crate::render::{ImageKind, IndexFrame, RenderPass};
-use crate::scene::{Format, Layout, LightKindSpec, MipOutput, Mode, Scene, Units};
+use crate::scene::{Format, Layout, LightKindSpec, MipOutput, Mode, OrbitPath, Scene, Units};
 use crate::shade::{Light, LightKind};
 use crate::volume::{human_bytes, VolumeHeader};
 
@@ -85,6 +85,12 @@ pub struct Plan {
     pub viewer: bool,
     /// One render pass per scene pass, in order.
     pub passes: Vec<RenderPass>,
+    /// The passes as the frames render them: [`Plan::passes`] itself, unless
+    /// keyframes animate pass values or clip offsets; then one variant per distinct
+    /// set of values (see [`Plan::variant`]).
+    pub variants: Vec<RenderPass>,
+    /// Per pass, per frame of the orbit: its variant (`None`: pass `p` is variant `p`).
+    variant_of: Option<Vec<Vec<usize>>>,
     /// Per pass: whether its grey window comes from a preview pass.
     pub auto_window: Vec<bool>,
     /// The volume's box in index space and the map to it (rays are clipped to it).
@@ -123,6 +129,12 @@ pub struct Plan {
 }
 
 impl Plan {
+    /// The variant of pass `p` that frame `k` renders (an index into
+    /// [`Plan::variants`]).
+    pub fn variant(&self, p: usize, k: usize) -> usize {
+        self.variant_of.as_ref().map_or(p, |v| v[p][k])
+    }
+
     /// Plans `scene` for a volume described by `header`.
     pub fn build(scene: &Scene, header: &VolumeHeader, opts: &RunOptions) -> Result<Plan, Error> {
         let fail = |message: String| Error::Plan {
@@ -227,6 +239,7 @@ impl Plan {
                 .with_clips(clips)
             })
             .collect();
+        let (variants, variant_of) = pass_variants(scene, &passes);
         let auto_window = scene
             .passes
             .iter()
@@ -377,6 +390,8 @@ impl Plan {
             out,
             viewer,
             passes,
+            variants,
+            variant_of,
             auto_window,
             frame,
             sphere,
@@ -504,14 +519,30 @@ impl Plan {
             Some(sh) => format!(", shard {sh}: {} frames", self.frame_list.len()),
             None => String::new(),
         };
+        let o = &scene.orbit;
+        let path = match o.path {
+            OrbitPath::Circle => format!(
+                "{} deg sweep, {:.3} deg per frame",
+                o.degrees,
+                o.degrees / o.frames as f64
+            ),
+            OrbitPath::Rock => format!(
+                "rock: the azimuth swings {} deg, {} +- {} sinusoidally",
+                o.degrees,
+                scene.camera.azimuth_deg,
+                o.degrees / 2.0
+            ),
+            OrbitPath::Elevation { lo, hi } => {
+                format!(
+                    "elevation: swings from {lo} deg up to {hi} deg at the middle frame and back"
+                )
+            }
+            OrbitPath::Keyframes => describe_keyframes(scene),
+        };
         let _ = writeln!(
             s,
-            "frames   {}..{} of {} ({} deg sweep, {:.3} deg per frame){shard}",
-            self.frames.start,
-            self.frames.end,
-            scene.orbit.frames,
-            scene.orbit.degrees,
-            scene.orbit.degrees / scene.orbit.frames as f64
+            "frames   {}..{} of {} ({path}){shard}",
+            self.frames.start, self.frames.end, o.frames,
         );
         let _ = writeln!(s, "stereo   {}", crate::output::describe_stereo(scene));
         let _ = writeln!(s, "views    {}", self.views.describe(&self.frame_list));
@@ -575,7 +606,15 @@ impl Plan {
             needs.extend(rp.describe(header.sizes));
             for (k, c) in scene.clips.iter().enumerate() {
                 if c.applies_to(&p.name) {
-                    needs.push(describe_clip(k, c, &p.mode));
+                    let mut line = describe_clip(k, c, &p.mode);
+                    if scene
+                        .keyframes
+                        .as_ref()
+                        .is_some_and(|kf| kf.clip_offsets.iter().any(|(q, _)| *q == k))
+                    {
+                        line.push_str("; its offset is keyframed");
+                    }
+                    needs.push(line);
                 }
             }
             if let Some(sh) = p.mode.shading() {
@@ -641,6 +680,107 @@ impl Plan {
         let _ = write!(s, "samples  at most about {:.3e}", self.samples_estimate);
         s
     }
+}
+
+/// What `check` says of a scene's keyframes.
+fn describe_keyframes(scene: &Scene) -> String {
+    let Some(kf) = &scene.keyframes else {
+        return "keyframes".into();
+    };
+    let mut what: Vec<String> = Vec::new();
+    for (name, ch) in [
+        ("azimuth", &kf.azimuth),
+        ("elevation", &kf.elevation),
+        ("zoom", &kf.zoom),
+        ("distance", &kf.distance),
+    ] {
+        if ch.is_some() {
+            what.push(name.into());
+        }
+    }
+    if kf.target.is_some() {
+        what.push("target".into());
+    }
+    for (p, _) in &kf.pass_values {
+        let key = match scene.passes[*p].mode {
+            Mode::Surface { .. } => "iso",
+            _ => "threshold",
+        };
+        what.push(format!("render.{}.{key}", scene.passes[*p].name));
+    }
+    for (c, _) in &kf.clip_offsets {
+        what.push(format!(
+            "clip.{}.offset",
+            scene.clips[*c].name.as_deref().unwrap_or("?")
+        ));
+    }
+    let frames: Vec<String> = kf.frames.iter().map(|f| f.to_string()).collect();
+    format!(
+        "keyframes at frames {}, {} interpolation, held before the first and after the last; animated: {}",
+        frames.join(", "),
+        if kf.smooth { "Catmull-Rom (smooth)" } else { "linear" },
+        if what.is_empty() {
+            "nothing".to_string()
+        } else {
+            what.join(", ")
+        }
+    )
+}
+
+/// The passes each frame renders when keyframes animate pass values (iso,
+/// threshold) or clip offsets: per pass and frame, the pass with that frame's values,
+/// one variant per distinct set (a frame's pass is then exactly the pass a scene
+/// with those values would plan). `None` when nothing is animated.
+fn pass_variants(
+    scene: &Scene,
+    passes: &[RenderPass],
+) -> (Vec<RenderPass>, Option<Vec<Vec<usize>>>) {
+    let animated = scene
+        .keyframes
+        .as_ref()
+        .is_some_and(|k| !k.pass_values.is_empty() || !k.clip_offsets.is_empty());
+    if !animated {
+        return (passes.to_vec(), None);
+    }
+    let mut variants: Vec<RenderPass> = Vec::new();
+    let mut index: std::collections::HashMap<(usize, Vec<u64>), usize> = Default::default();
+    let of = (0..passes.len())
+        .map(|p| {
+            (0..scene.orbit.frames)
+                .map(|k| {
+                    let value = scene.pass_value_at(p, k);
+                    let clips: Vec<(usize, f64)> = scene
+                        .clips
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, c)| c.applies_to(&scene.passes[p].name))
+                        .map(|(c, _)| (c, scene.clip_offset_at(c, k)))
+                        .collect();
+                    let key = (
+                        p,
+                        value
+                            .iter()
+                            .chain(clips.iter().map(|(_, o)| o))
+                            .map(|x| x.to_bits())
+                            .collect(),
+                    );
+                    *index.entry(key).or_insert_with(|| {
+                        let planes = clips
+                            .iter()
+                            .map(|&(c, o)| scene.clips[c].plane_at(o))
+                            .collect();
+                        let mut v = passes[p].clone().with_clips(planes);
+                        if let Some(x) = value {
+                            v = v.with_value(x);
+                        }
+                        variants.push(v);
+                        variants.len() - 1
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    (variants, Some(of))
 }
 
 /// One line of `check` for clipping plane `k` of a pass of `mode`.

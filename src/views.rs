@@ -25,7 +25,7 @@ use glam::DVec3;
 
 use crate::output::Eye;
 use crate::render::View;
-use crate::scene::{Camera, Scene, Separation, StereoMethod};
+use crate::scene::{Camera, OrbitPath, Scene, Separation, StereoMethod};
 
 /// One distinct view: an orbit position and an eye placed there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -62,6 +62,9 @@ pub struct Views {
     /// Whether identical views are rendered once (`false` renders every (frame,
     /// eye) image on its own, with the same poses; for tests and comparisons).
     pub share: bool,
+    /// Each frame's camera on a path other than the circle (rock, elevation,
+    /// keyframes); the circle turns the scene's camera by the orbit offset.
+    cameras: Option<Vec<Camera>>,
 }
 
 /// A whole number `n` when `x` is within a relative 1e-9 of it (and not zero).
@@ -84,13 +87,19 @@ impl Views {
                 StereoMethod::Parallel(sep) => Placement::Parallel(sep),
             },
         };
+        let cameras = (scene.orbit.path != OrbitPath::Circle)
+            .then(|| (0..frames).map(|k| scene.camera_at(k)).collect::<Vec<_>>());
         let reuse = match (placement, &scene.stereo) {
+            // views coincide only on the circle
+            _ if cameras.is_some() => None,
             (Placement::ToeIn { .. }, Some(s)) if degrees != 0.0 => {
                 whole(s.angle_deg * frames as f64 / degrees)
             }
             _ => None,
         };
-        let period = if degrees == 0.0 {
+        let period = if cameras.is_some() {
+            None
+        } else if degrees == 0.0 {
             Some(1)
         } else {
             whole(360.0 * frames as f64 / degrees.abs()).filter(|&q| q > 0)
@@ -102,6 +111,7 @@ impl Views {
             reuse,
             period,
             share,
+            cameras,
         }
     }
 
@@ -159,14 +169,38 @@ impl Views {
         position as f64 * self.degrees / self.frames as f64
     }
 
-    /// The azimuth offset of a view (orbit position plus the toe-in turn).
+    /// The azimuth offset of a view from its camera (the orbit position on the
+    /// circle, plus the toe-in turn).
     pub fn azimuth_offset_deg(&self, key: ViewKey) -> f64 {
-        let base = self.orbit_offset_deg(key.position);
+        let base = if self.cameras.is_some() {
+            0.0
+        } else {
+            self.orbit_offset_deg(key.position)
+        };
         match (self.placement, key.eye) {
             (Placement::ToeIn { half_angle_deg }, Eye::Left) => base + -half_angle_deg,
             (Placement::ToeIn { half_angle_deg }, Eye::Right) => base + half_angle_deg,
             _ => base,
         }
+    }
+
+    /// The camera a view turns by [`Views::azimuth_offset_deg`]: the scene's on
+    /// the circle, the frame's on other paths.
+    fn camera_of<'a>(&'a self, camera: &'a Camera, key: ViewKey) -> &'a Camera {
+        match &self.cameras {
+            Some(c) => &c[key.position as usize],
+            None => camera,
+        }
+    }
+
+    /// The azimuth and elevation (degrees) a view is seen from, `camera` being the
+    /// scene's.
+    pub fn angles_deg(&self, camera: &Camera, key: ViewKey) -> (f64, f64) {
+        let c = self.camera_of(camera, key);
+        (
+            c.azimuth_deg + self.azimuth_offset_deg(key),
+            c.elevation_deg,
+        )
     }
 
     /// The camera pose and image plane of a view.
@@ -178,7 +212,13 @@ impl Views {
         height: usize,
         sphere: (DVec3, f64),
     ) -> View {
-        let view = View::new(camera, self.azimuth_offset_deg(key), width, height, sphere);
+        let view = View::new(
+            self.camera_of(camera, key),
+            self.azimuth_offset_deg(key),
+            width,
+            height,
+            sphere,
+        );
         match (self.placement, key.eye) {
             (Placement::Parallel(sep), Eye::Left | Eye::Right) => {
                 let s = match sep {

@@ -15,6 +15,7 @@ mod exit_codes;
 mod fuzz;
 mod geometry;
 mod hard_cases;
+mod keyframes;
 mod mapping;
 mod memory;
 mod nrrd;

@@ -535,7 +535,11 @@ pub fn resolved_scene(scene: &Scene) -> Value {
             "distance": c.distance,
             "target": c.target.map(|t| t.to_array()),
         },
-        "orbit": { "frames": scene.orbit.frames, "degrees": scene.orbit.degrees },
+        "orbit": {
+            "frames": scene.orbit.frames,
+            "degrees": scene.orbit.degrees,
+            "path": scene.orbit.path.name(),
+        },
         "stereo": stereo,
         "image": {
             "size": [scene.image.width, scene.image.height],

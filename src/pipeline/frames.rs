@@ -34,23 +34,24 @@ pub(super) fn render_passes(
         index_from_world,
         &plan.passes,
     );
-    let runtimes: Vec<Box<dyn RenderView + '_>> =
-        plan.passes.iter().map(|p| p.prepare(&resources)).collect();
+    // one runtime per variant: the passes, or their keyframed values per frame
+    let runtimes: Vec<Box<dyn RenderView + '_>> = plan
+        .variants
+        .iter()
+        .map(|p| p.prepare(&resources))
+        .collect();
     let views = &plan.views;
     let view_of = |key: ViewKey, w: usize, h: usize| views.view(&scene.camera, key, w, h, sphere);
 
     // Grey windows: fixed, or from a preview of every distinct view of the whole
     // orbit (whatever frames this run renders, so that all runs agree).
-    let orbit_views: BTreeSet<ViewKey> = (0..scene.orbit.frames)
-        .flat_map(|k| views.eyes().iter().map(move |&e| views.key(k, e)))
-        .collect();
     let windows: Vec<Option<Window>> = scene
         .passes
         .iter()
         .zip(&plan.passes)
-        .zip(&runtimes)
         .zip(&plan.auto_window)
-        .map(|(((pass, rp), rt), &auto)| {
+        .enumerate()
+        .map(|(p, ((pass, rp), &auto))| {
             if rp.kind() == ImageKind::Rgba || scene.image.format == Format::Nrrd {
                 None
             } else if let Some([lo, hi]) = pass.window {
@@ -58,9 +59,16 @@ pub(super) fn render_passes(
             } else {
                 debug_assert!(auto);
                 let (w, h) = plan.preview;
+                // every distinct (variant, view) of the whole orbit
+                let orbit_views: BTreeSet<(usize, ViewKey)> = (0..scene.orbit.frames)
+                    .flat_map(|k| {
+                        let v = plan.variant(p, k);
+                        views.eyes().iter().map(move |&e| (v, views.key(k, e)))
+                    })
+                    .collect();
                 let films: Vec<Film> = orbit_views
                     .par_iter()
-                    .map(|&key| rt.render(&view_of(key, w, h), &frame).0)
+                    .map(|&(v, key)| runtimes[v].render(&view_of(key, w, h), &frame).0)
                     .collect();
                 Some(Window::of_films(&films))
             }
@@ -70,8 +78,14 @@ pub(super) fn render_passes(
     prepare()?;
     // Frames in batches: render the batch's views not yet rendered (in parallel),
     // write its images (in parallel), drop the views no later batch needs.
+    // keyed by the variant the frame renders, so frames with other keyframed
+    // values never share a view
     let cache_key = |p: usize, k: usize, e: Eye| -> CacheKey {
-        (p, views.key(k, e), (!views.share).then_some((k, e)))
+        (
+            plan.variant(p, k),
+            views.key(k, e),
+            (!views.share).then_some((k, e)),
+        )
     };
     let mut batches: Vec<Vec<(usize, usize)>> = Vec::new();
     let per_batch = frames_per_batch(rayon::current_num_threads());

@@ -217,14 +217,8 @@ fn render_run(
                     .eyes
                     .iter()
                     .map(|e| {
-                        ViewRecord::new(
-                            e.eye,
-                            e.key,
-                            scene.camera.azimuth_deg + plan.views.azimuth_offset_deg(e.key),
-                            scene.camera.elevation_deg,
-                            &e.view,
-                            e.samples,
-                        )
+                        let (azimuth, elevation) = plan.views.angles_deg(&scene.camera, e.key);
+                        ViewRecord::new(e.eye, e.key, azimuth, elevation, &e.view, e.samples)
                     })
                     .collect(),
                 window: fv.window.map(|w| [w.lo, w.hi]),

@@ -73,7 +73,7 @@ pub(super) fn write_frame(
                 })?
             }
             Format::Nrrd => {
-                let azimuth = scene.camera.azimuth_deg + scene.orbit.azimuth_offset_deg(k);
+                let azimuth = scene.camera_at(k).azimuth_deg;
                 let mut kv = vec![
                     ("volcast_pass".to_string(), pass.name.clone()),
                     ("volcast_mode".to_string(), pass.mode.name().to_string()),
@@ -85,10 +85,7 @@ pub(super) fn write_frame(
                     if let Some(e) = e {
                         kv.push((
                             "volcast_eye_azimuth_deg".to_string(),
-                            format!(
-                                "{}",
-                                scene.camera.azimuth_deg + plan.views.azimuth_offset_deg(e.key)
-                            ),
+                            format!("{}", plan.views.angles_deg(&scene.camera, e.key).0),
                         ));
                     }
                 }

@@ -270,6 +270,21 @@ impl RenderPass {
         self
     }
 
+    /// The pass with its iso value or threshold (normalised) set to `value`: how a
+    /// keyframed frame's pass is made (modes without one are returned unchanged).
+    pub fn with_value(mut self, value: f64) -> RenderPass {
+        let v = value as f32;
+        match &mut self.mode {
+            ModeSpec::Lmip(Lmip { threshold })
+            | ModeSpec::Depth(Depth { threshold })
+            | ModeSpec::Exact(Exact::Depth { threshold }) => *threshold = v,
+            ModeSpec::Surface(Surface { iso, .. })
+            | ModeSpec::Exact(Exact::Surface { iso, .. }) => *iso = v,
+            _ => {}
+        }
+        self
+    }
+
     /// The clipping planes that apply to the pass.
     pub fn clips(&self) -> &[ClipPlane] {
         &self.clips

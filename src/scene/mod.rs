@@ -6,6 +6,7 @@
 //! contract for names and meanings is SCENES.md; the README documents every key.
 
 mod diag;
+mod path;
 mod resolve;
 mod schema;
 
@@ -15,6 +16,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 pub use diag::{Diagnostic, SceneError};
+pub use path::{Channel, Keyframes, OrbitPath};
 
 use crate::sample::{GradientMethod, Interpolation};
 use crate::shade::{Material, Model};
@@ -44,6 +46,8 @@ pub struct Scene {
     pub light: LightSpec,
     /// Clipping planes (`[[clip]]`), in file order.
     pub clips: Vec<Clip>,
+    /// What `[[keyframe]]` tables animate (with `orbit.path` = keyframes).
+    pub keyframes: Option<Keyframes>,
     /// Animated files to assemble from each pass's frames, when requested.
     pub animation: Option<Animation>,
     /// Write `{out}/index.html`, a turntable page for the browser, once every frame
@@ -128,13 +132,16 @@ pub struct Camera {
     pub target: Option<DVec3>,
 }
 
-/// The turntable: `frames` views, frame k at `azimuth + k * degrees / frames`.
+/// The frames' camera path: on the default circle, frame k at `azimuth + k *
+/// degrees / frames` (see `path.rs` for the others).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Orbit {
     /// Number of frames (at least 1).
     pub frames: usize,
-    /// Total sweep in degrees.
+    /// Total sweep in degrees (circle), or the swing (rock).
     pub degrees: f64,
+    /// The path.
+    pub path: OrbitPath,
 }
 
 impl Orbit {
@@ -481,8 +488,13 @@ impl Clip {
 
     /// The plane as the renderer takes it: through `point + offset normal`.
     pub fn plane(&self) -> crate::render::ClipPlane {
+        self.plane_at(self.offset)
+    }
+
+    /// The plane moved by `offset` instead of its own (a keyframed offset).
+    pub fn plane_at(&self, offset: f64) -> crate::render::ClipPlane {
         crate::render::ClipPlane {
-            point: self.point + self.offset * self.normal,
+            point: self.point + offset * self.normal,
             normal: self.normal,
             cap: self.cap,
         }

@@ -31,6 +31,7 @@ pub struct SceneFile {
     pub animation: Option<Spanned<AnimationTable>>,
     pub viewer: Option<Spanned<ViewerTable>>,
     pub clip: Option<Vec<Spanned<ClipTable>>>,
+    pub keyframe: Option<Vec<Spanned<KeyframeTable>>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -84,6 +85,35 @@ pub struct CameraTable {
 pub struct OrbitTable {
     pub frames: Sp<i64>,
     pub degrees: Sp<f64>,
+    pub path: Sp<String>,
+    pub elevations: Sp<[f64; 2]>,
+    pub interpolation: Sp<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KeyframeTable {
+    pub frame: Sp<i64>,
+    pub azimuth: Sp<f64>,
+    pub elevation: Sp<f64>,
+    pub zoom: Sp<f64>,
+    pub distance: Sp<f64>,
+    pub target: Option<Spanned<[f64; 3]>>,
+    pub render: Option<BTreeMap<String, Spanned<KeyPassTable>>>,
+    pub clip: Option<BTreeMap<String, Spanned<KeyClipTable>>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KeyPassTable {
+    pub iso: Sp<f64>,
+    pub threshold: Sp<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KeyClipTable {
+    pub offset: Sp<f64>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -3,10 +3,11 @@
 //! is collected with its place in the file; the scene is returned only if there
 //! are none. One submodule per part of the scene: [`volume`], [`view`] (camera,
 //! orbit, image, stereo, animation, viewer, light), [`appearance`] (materials and
-//! transfer functions), [`passes`] and [`clip`].
+//! transfer functions), [`passes`], [`clip`] and [`keyframes`].
 
 mod appearance;
 mod clip;
+mod keyframes;
 mod passes;
 mod view;
 mod volume;
@@ -60,7 +61,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         .unwrap_or_else(|| "scene".into());
     let volume = r.volume(&file.volume);
     let camera = r.camera(file.camera.as_ref());
-    let orbit = r.orbit(file.orbit.as_ref());
+    let mut orbit = r.orbit(file.orbit.as_ref());
     let image = r.image(file.image.as_ref(), &name);
     let stereo = file
         .stereo
@@ -79,6 +80,13 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let transfers = r.transfers(&file.transfer);
     let passes = r.passes(file.render.as_deref(), &materials, &transfers);
     let clips = r.clips(file.clip.as_deref(), &passes);
+    let keyframes = r.keyframes(
+        file.keyframe.as_deref(),
+        file.orbit.as_ref(),
+        &mut orbit,
+        &passes,
+        &clips,
+    );
     // "needs `key`" adds nothing when `key` was given but of the wrong type
     diags.extend(r.diags.into_iter().filter(|d| {
         !(d.message.contains("needs")
@@ -101,6 +109,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         passes,
         light,
         clips,
+        keyframes,
         animation,
         viewer,
         text: text.to_string(),

@@ -90,6 +90,7 @@ impl Resolver<'_> {
         let mut o = Orbit {
             frames: 1,
             degrees: 360.0,
+            path: OrbitPath::Circle,
         };
         let Some(t) = t else { return o };
         let v = t.get_ref();
@@ -106,13 +107,50 @@ impl Resolver<'_> {
                 );
             }
         }
+        let path = self.choice(
+            "path",
+            &v.path,
+            &[("circle", 0), ("rock", 1), ("elevation", 2)],
+            0,
+        );
         o.degrees = self.number(
             "degrees",
             &v.degrees,
-            360.0,
+            // a rock swings 30 degrees unless told otherwise
+            if path == 1 { 30.0 } else { 360.0 },
             |_| true,
             "a finite number of degrees",
         );
+        o.path = match path {
+            1 => OrbitPath::Rock,
+            2 => match &v.elevations {
+                Some(e) => {
+                    let [lo, hi] = *e.get_ref();
+                    if lo.is_finite()
+                        && hi.is_finite()
+                        && (-90.0..=90.0).contains(&lo)
+                        && (-90.0..=90.0).contains(&hi)
+                    {
+                        OrbitPath::Elevation { lo, hi }
+                    } else {
+                        self.err(e.span(), format!("elevations = [{lo}, {hi}]: expected two elevations in degrees from -90 to 90"));
+                        OrbitPath::Circle
+                    }
+                }
+                None => {
+                    let span = v.path.as_ref().map_or(t.span(), |p| p.span());
+                    self.err(span, "path = \"elevation\" needs `elevations = [lo, hi]`: the elevations in degrees (-90 to 90) the camera swings between");
+                    OrbitPath::Circle
+                }
+            },
+            _ => OrbitPath::Circle,
+        };
+        if let (Some(e), false) = (&v.elevations, path == 2) {
+            self.err(e.span(), "`elevations` is used by path = \"elevation\"");
+        }
+        if let (Some(d), 2) = (&v.degrees, path) {
+            self.err(d.span(), "`degrees` is not used by path = \"elevation\" (the azimuth stays; the elevation swings between `elevations`)");
+        }
         o
     }
 
