@@ -10,6 +10,7 @@ mod cli;
 mod confine;
 mod determinism;
 mod exit_codes;
+mod formats;
 mod fuzz;
 mod geometry;
 mod hard_cases;

@@ -14,10 +14,14 @@ pub mod confine;
 pub mod geometry;
 pub mod limits;
 pub mod mapped;
+pub mod metaimage;
+pub mod nifti;
 pub mod nrrd;
 pub mod raw;
+pub mod rescale;
 pub mod scalar;
 pub mod stats;
+mod stream;
 pub mod synthetic;
 
 use std::path::{Path, PathBuf};
@@ -25,6 +29,7 @@ use std::path::{Path, PathBuf};
 pub use geometry::Geometry;
 pub use limits::Limits;
 pub use mapped::{MappedVoxels, ReadReason, Storage};
+pub use rescale::Rescale;
 pub use scalar::{ScalarType, TypedVoxels, VolumeData, Voxel, Voxels};
 pub use stats::Stats;
 pub use synthetic::Synthetic;
@@ -135,6 +140,10 @@ pub fn human_bytes(b: u64) -> String {
 pub enum VolumeSource {
     /// A `.nrrd` or `.nhdr` file.
     Nrrd(PathBuf),
+    /// A NIfTI-1 file (`.nii`, `.nii.gz`) and the volume of it to render.
+    Nifti(nifti::NiftiSpec),
+    /// A MetaImage file (`.mha`, or a `.mhd` header and its data file).
+    MetaImage(PathBuf),
     /// A headerless file described by the scene.
     Raw(raw::RawSpec),
     /// An analytic field sampled on a grid spanning [-1, 1]^3.
@@ -154,6 +163,9 @@ pub struct VolumeHeader {
     pub source: String,
     /// Descriptive fields worth showing (`content`, `key:=value` pairs, units, ...).
     pub fields: Vec<(String, String)>,
+    /// What the stored values stand for (NIfTI `scl_slope`/`scl_inter`); folded into
+    /// the value window, never applied to the voxels.
+    pub rescale: Rescale,
 }
 
 impl VolumeHeader {
@@ -187,11 +199,57 @@ impl Volume {
     }
 }
 
+/// The file formats a volume path can name, told by its extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FileFormat {
+    /// `.nrrd`, `.nhdr`
+    Nrrd,
+    /// `.nii`, `.nii.gz`
+    Nifti,
+    /// `.mha`, `.mhd`
+    MetaImage,
+}
+
+impl FileFormat {
+    /// The format a file name's extension names (case-insensitive), if any.
+    pub fn from_path(path: &Path) -> Option<FileFormat> {
+        let name = path.file_name()?.to_string_lossy().to_ascii_lowercase();
+        let ext = |e: &str| name.ends_with(e);
+        if ext(".nrrd") || ext(".nhdr") {
+            Some(FileFormat::Nrrd)
+        } else if ext(".nii") || ext(".nii.gz") {
+            Some(FileFormat::Nifti)
+        } else if ext(".mha") || ext(".mhd") {
+            Some(FileFormat::MetaImage)
+        } else {
+            None
+        }
+    }
+}
+
 impl VolumeSource {
+    /// The source of a volume file named on the command line (`volcast info`): its
+    /// format from the extension (NRRD when unknown); the first volume of a 4D NIfTI.
+    pub fn from_path(path: &Path) -> Result<VolumeSource, VolumeError> {
+        Ok(match FileFormat::from_path(path) {
+            Some(FileFormat::Nifti) => {
+                let (h, _) = nifti::read_header(path)?;
+                VolumeSource::Nifti(nifti::NiftiSpec {
+                    path: path.to_path_buf(),
+                    index: (h.volumes() > 1).then_some(0),
+                })
+            }
+            Some(FileFormat::MetaImage) => VolumeSource::MetaImage(path.to_path_buf()),
+            Some(FileFormat::Nrrd) | None => VolumeSource::Nrrd(path.to_path_buf()),
+        })
+    }
+
     /// Reads only what describes the volume: sizes, type, geometry.
     pub fn header(&self) -> Result<VolumeHeader, VolumeError> {
         match self {
             VolumeSource::Nrrd(path) => nrrd::read_header(path)?.volume_header(path),
+            VolumeSource::Nifti(spec) => spec.header(),
+            VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }.header(),
             VolumeSource::Raw(spec) => spec.header(),
             VolumeSource::Synthetic(s) => Ok(s.header()),
         }
@@ -203,6 +261,10 @@ impl VolumeSource {
     pub fn load(&self, limits: &Limits) -> Result<Volume, VolumeError> {
         match self {
             VolumeSource::Nrrd(path) => load_nrrd(path, limits),
+            VolumeSource::Nifti(spec) => spec.load(limits),
+            VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }
+                .load_hashed(limits, false)
+                .map(|(v, _)| v),
             VolumeSource::Raw(spec) => spec.load(limits),
             VolumeSource::Synthetic(s) => s.load(limits),
         }
@@ -216,6 +278,8 @@ impl VolumeSource {
     pub fn storage(&self) -> Result<Storage, VolumeError> {
         match self {
             VolumeSource::Nrrd(path) => nrrd::storage(path),
+            VolumeSource::Nifti(spec) => spec.storage(),
+            VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }.storage(),
             VolumeSource::Raw(spec) => spec.storage(),
             VolumeSource::Synthetic(s) => Ok(Storage::Read {
                 bytes: s.header().data_bytes(),
@@ -230,6 +294,8 @@ impl VolumeSource {
     pub fn stamps(&self) -> Result<Vec<FileStamp>, VolumeError> {
         let files = match self {
             VolumeSource::Nrrd(path) => nrrd::input_files(path)?,
+            VolumeSource::Nifti(spec) => vec![spec.path.clone()],
+            VolumeSource::MetaImage(path) => metaimage::input_files(path)?,
             VolumeSource::Raw(spec) => vec![spec.path.clone()],
             VolumeSource::Synthetic(_) => Vec::new(),
         };
@@ -250,6 +316,10 @@ impl VolumeSource {
                 let (header, data, hash) = nrrd::read_hashed(path, limits)?;
                 let vh = header.volume_header(path)?;
                 (Volume { header: vh, data }, Some(hash))
+            }
+            VolumeSource::Nifti(spec) => spec.load_hashed(limits, true)?,
+            VolumeSource::MetaImage(path) => {
+                metaimage::MetaSpec { path }.load_hashed(limits, true)?
             }
             VolumeSource::Raw(spec) => spec.load_hashed(limits, true)?,
             VolumeSource::Synthetic(s) => (s.load(limits)?, None),
@@ -272,6 +342,8 @@ impl VolumeSource {
     pub fn path(&self) -> Option<&Path> {
         match self {
             VolumeSource::Nrrd(p) => Some(p),
+            VolumeSource::Nifti(n) => Some(&n.path),
+            VolumeSource::MetaImage(p) => Some(p),
             VolumeSource::Raw(r) => Some(&r.path),
             VolumeSource::Synthetic(_) => None,
         }
