@@ -445,3 +445,35 @@ fn confinement_covers_the_data_file_of_a_mhd() {
         );
     }
 }
+
+#[test]
+fn a_negative_slope_inverts_the_window() {
+    // i16_scaled.nii with scl_slope -1, scl_inter 0 stands for the negated voxels: it
+    // renders the bytes of a NRRD holding them, with the default window and a window
+    // of physical values
+    let tmp = tempfile::tempdir().unwrap();
+    let nii = damaged(tmp.path(), "i16_scaled.nii", |b| {
+        b[112..116].copy_from_slice(&(-1f32).to_le_bytes());
+        b[116..120].copy_from_slice(&0f32.to_le_bytes());
+    });
+    let nrrd = damaged(tmp.path(), "i16_scaled_ref.nrrd", |b| {
+        let start = b.windows(2).position(|w| w == b"\n\n").unwrap() + 2;
+        for v in b[start..].chunks_exact_mut(2) {
+            let x = -i16::from_le_bytes([v[0], v[1]]);
+            v.copy_from_slice(&x.to_le_bytes());
+        }
+    });
+    let line = |p: &Path| format!("path = {:?}", p.display().to_string());
+    let passes = "[[render]]\nmode = \"mip\"\n[[render]]\nmode = \"surface\"\niso = 0.3\n";
+    for window in ["", "window = [-600.0, 20.0]"] {
+        let a = render(&format!("{}\n{window}", line(&nii)), passes);
+        let b = render(&format!("{}\n{window}", line(&nrrd)), passes);
+        assert_eq!(a.len(), 2);
+        for ((file, x), (_, y)) in a.iter().zip(&b) {
+            assert!(
+                x == y,
+                "{file} ({window:?}): differs from the negated voxels"
+            );
+        }
+    }
+}

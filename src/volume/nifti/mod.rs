@@ -13,6 +13,10 @@
 //!                                           swap) growing only as data arrives
 //! ```
 //!
+//! Lengths: an uncompressed file must hold exactly `vox_offset` and every volume; a
+//! `.nii.gz` is decompressed only up to the chosen volume, so it must reach that far,
+//! and is checked for data past the end only when the chosen volume is the last.
+//!
 //! Voxels keep their stored type; `scl_slope`/`scl_inter` become the header's
 //! [`Rescale`](crate::volume::Rescale), folded into the value window. World
 //! coordinates are NIfTI's (RAS+), not converted.
