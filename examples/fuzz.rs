@@ -242,11 +242,11 @@ fn fuzz(o: &Options, kind: Kind) -> u64 {
                         break;
                     }
                     let (name, bytes) = case(kind, seeds, o.seed, i);
-                    let path = dir.join(&name);
-                    if std::fs::write(&path, &bytes).is_err() {
+                    let Ok(path) = mutate::place(&dir, &name, &bytes) else {
                         continue;
-                    }
-                    if let Outcome::Failed(why) = run_case(o, kind, &dir, &name) {
+                    };
+                    let given = path.strip_prefix(&dir).unwrap_or(&path).to_string_lossy();
+                    if let Outcome::Failed(why) = run_case(o, kind, &dir, &given) {
                         failures.fetch_add(1, Ordering::Relaxed);
                         let keep = o.out.join(format!("{}-{}-{i}", kind.name(), o.seed));
                         let _ = std::fs::create_dir_all(&keep);

@@ -8,6 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
+use volcast::volume::dicom::DicomSpec;
 use volcast::volume::nifti::NiftiSpec;
 use volcast::volume::{Limits, VolumeError, VolumeSource};
 
@@ -42,9 +43,26 @@ const PAIRS: &[(&str, &str, &str)] = &[
     ("u8.mha", "u8_mha_ref.nrrd", ""),
     ("i16.mhd", "i16_mhd_ref.nrrd", ""),
     ("f32_zlib.mha", "f32_zlib_ref.nrrd", ""),
+    ("dicom_ct", "dicom_ct_a_ref.nrrd", DICOM_A),
+    ("dicom_ct", "dicom_ct_b_ref.nrrd", DICOM_B),
 ];
 
+/// The two series of `dicom_ct`: int16 with one rescale (-1024 HU), and uint16 whose
+/// rescale differs from slice to slice (read as float32 values).
+const DICOM_A: &str = "format = \"dicom\"\nseries = \"1.2.826.0.1.3680043.8.498.10\"";
+const DICOM_B: &str = "format = \"dicom\"\nseries = \"1.2.826.0.1.3680043.8.498.20\"";
+
+fn dicom(folder: &str, series: Option<&str>) -> VolumeSource {
+    VolumeSource::Dicom(DicomSpec {
+        dir: fixture(folder),
+        series: series.map(str::to_string),
+    })
+}
+
 fn source(name: &str, lines: &str) -> VolumeSource {
+    if let Some(series) = lines.split("series = ").nth(1) {
+        return dicom(name, Some(series.trim_matches('"')));
+    }
     if name.ends_with(".mha") || name.ends_with(".mhd") {
         VolumeSource::MetaImage(fixture(name))
     } else {
@@ -424,7 +442,16 @@ fn confinement_covers_the_data_file_of_a_mhd() {
         );
     std::fs::write(sub.join("v.mhd"), header).unwrap();
     std::os::unix::fs::symlink(fixture("u8_sform.nii"), sub.join("link.nii")).unwrap();
-    for volume in ["v.mhd", "link.nii"] {
+    // a DICOM folder whose slices link to files outside
+    let slices = sub.join("slices");
+    std::fs::create_dir(&slices).unwrap();
+    for e in std::fs::read_dir(fixture("dicom_ct")).unwrap() {
+        let p = e.unwrap().path();
+        if p.file_name().unwrap().to_string_lossy().starts_with("10_") {
+            std::os::unix::fs::symlink(&p, slices.join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    for volume in ["v.mhd", "link.nii", "slices\"\nformat = \"dicom"] {
         std::fs::write(
             sub.join("s.toml"),
             format!("[volume]\npath = \"{volume}\"\n[image]\nsize = [8, 8]\n[[render]]\nmode = \"mip\"\n"),
@@ -434,7 +461,7 @@ fn confinement_covers_the_data_file_of_a_mhd() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{volume}: {err}");
         assert!(
-            err.contains("is outside") && err.contains("(--confine)"),
+            err.contains("outside") && err.contains("(--confine)"),
             "{err}"
         );
         let o = volcast(&sub, &["check", "s.toml"]);
@@ -476,4 +503,104 @@ fn a_negative_slope_inverts_the_window() {
             );
         }
     }
+}
+
+#[test]
+fn dicom_rescale_is_hounsfield_units_in_the_window() {
+    // series A: stored int16, RescaleIntercept -1024: a window in HU is the stored
+    // window shifted by 1024, and the voxels keep their type
+    let h = dicom("dicom_ct", Some("1.2.826.0.1.3680043.8.498.10"))
+        .header()
+        .unwrap();
+    assert_eq!(h.scalar_type, volcast::volume::ScalarType::Int16);
+    assert_eq!(h.rescale.intercept, -1024.0);
+    let passes = "[[render]]\nmode = \"surface\"\niso = 100.0\n[[render]]\nmode = \"mip\"\n";
+    let a = render(
+        &format!(
+            "{}\n{DICOM_A}\nwindow = [-1054.0, -724.0]\nunits = \"data\"",
+            path_line("dicom_ct")
+        ),
+        &passes.replace("100.0", "-924.0"),
+    );
+    let b = render(
+        &format!(
+            "{}\nwindow = [-30.0, 300.0]\nunits = \"data\"",
+            path_line("dicom_ct_a_ref.nrrd")
+        ),
+        passes,
+    );
+    assert_eq!(a.len(), 2);
+    assert!(a == b, "the HU window renders other bytes");
+    // series B: rescales differ, so the voxels are float32 values, no rescale left
+    let h = dicom("dicom_ct", Some("1.2.826.0.1.3680043.8.498.20"))
+        .header()
+        .unwrap();
+    assert_eq!(h.scalar_type, volcast::volume::ScalarType::Float32);
+    assert!(h.rescale.is_identity());
+    assert_eq!(h.sizes, [8, 6, 3]);
+}
+
+#[test]
+fn dicom_series_problems_are_named() {
+    let e = dicom("dicom_ct", None).header().unwrap_err().to_string();
+    assert!(
+        e.contains("holds 2 series")
+            && e.contains("498.10\" (5 slices")
+            && e.contains("498.20\" (3 slices"),
+        "{e}"
+    );
+    let e = dicom("dicom_ct", Some("9.9"))
+        .header()
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("series = \"9.9\" is not in the folder"), "{e}");
+    let e = dicom("dicom_tilt", None).header().unwrap_err().to_string();
+    assert!(e.contains("gantry tilt"), "{e}");
+    let e = dicom("dicom_jpeg", None).header().unwrap_err().to_string();
+    assert!(e.contains("1.2.840.10008.1.2.4.50 (JPEG Baseline"), "{e}");
+    // a missing slice: uneven spacing; a slice cut short: the declared length
+    let tmp = tempfile::tempdir().unwrap();
+    let copy = |skip: &str, cut: Option<&str>| {
+        let d = tmp.path().join(format!("c{skip}{}", cut.unwrap_or("")));
+        std::fs::create_dir(&d).unwrap();
+        for e in std::fs::read_dir(fixture("dicom_ct")).unwrap() {
+            let p = e.unwrap().path();
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            if name.starts_with("10_") && name != skip {
+                let mut b = std::fs::read(&p).unwrap();
+                if cut == Some(name.as_str()) {
+                    b.truncate(b.len() - 10);
+                }
+                std::fs::write(d.join(&name), b).unwrap();
+            }
+        }
+        VolumeSource::Dicom(DicomSpec {
+            dir: d,
+            series: None,
+        })
+    };
+    // files 10_{3,0,7,4,1}.dcm hold slices 0..4: 10_7.dcm is the middle one
+    let e = copy("10_7.dcm", None).header().unwrap_err().to_string();
+    assert!(e.contains("uneven slice spacing"), "{e}");
+    let e = copy("", Some("10_4.dcm")).header().unwrap_err().to_string();
+    assert!(
+        e.contains("10_4.dcm") && e.contains("(7FE0,0010)") && e.contains("declares 96 bytes"),
+        "{e}"
+    );
+    // `series` belongs to DICOM folders only
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(
+        tmp.path().join("s.toml"),
+        format!(
+            "[volume]\n{}\nseries = \"1.2\"\n[[render]]\nmode = \"mip\"\n",
+            path_line("u8.mha")
+        ),
+    )
+    .unwrap();
+    let o = volcast(tmp.path(), &["check", "s.toml"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("`series` is only used by DICOM folders"),
+        "{err}"
+    );
 }

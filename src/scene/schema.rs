@@ -41,6 +41,8 @@ pub struct VolumeTable {
     pub crop: Sp<[[i64; 2]; 3]>,
     // 4D NIfTI
     pub index: Sp<i64>,
+    // DICOM
+    pub series: Sp<String>,
     // raw
     // numbers, so that `4e9` is reported as too large rather than as a float
     pub sizes: Sp<Vec<f64>>,

@@ -93,6 +93,12 @@ pub fn check_source(source: &VolumeSource, root: &Root) -> Result<(), VolumeErro
     let files = match source {
         VolumeSource::Nrrd(p) => super::nrrd::input_files(p)?,
         VolumeSource::MetaImage(p) => super::metaimage::input_files(p)?,
+        VolumeSource::Dicom(d) => {
+            // every slice, with the folder itself first
+            let mut files = vec![d.dir.clone()];
+            files.extend(d.input_files()?);
+            files
+        }
         _ => Vec::new(),
     };
     for f in files.iter().skip(1) {

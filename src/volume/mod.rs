@@ -11,6 +11,7 @@
 //! module knows about cameras or render modes.
 
 pub mod confine;
+pub mod dicom;
 pub mod geometry;
 pub mod limits;
 pub mod mapped;
@@ -144,6 +145,8 @@ pub enum VolumeSource {
     Nifti(nifti::NiftiSpec),
     /// A MetaImage file (`.mha`, or a `.mhd` header and its data file).
     MetaImage(PathBuf),
+    /// A folder of DICOM slices (`format = "dicom"`) and the series to render.
+    Dicom(dicom::DicomSpec),
     /// A headerless file described by the scene.
     Raw(raw::RawSpec),
     /// An analytic field sampled on a grid spanning [-1, 1]^3.
@@ -229,8 +232,15 @@ impl FileFormat {
 
 impl VolumeSource {
     /// The source of a volume file named on the command line (`volcast info`): its
-    /// format from the extension (NRRD when unknown); the first volume of a 4D NIfTI.
+    /// format from the extension (NRRD when unknown); the first volume of a 4D NIfTI;
+    /// a folder is a DICOM series.
     pub fn from_path(path: &Path) -> Result<VolumeSource, VolumeError> {
+        if path.is_dir() {
+            return Ok(VolumeSource::Dicom(dicom::DicomSpec {
+                dir: path.to_path_buf(),
+                series: None,
+            }));
+        }
         Ok(match FileFormat::from_path(path) {
             Some(FileFormat::Nifti) => {
                 let (h, _) = nifti::read_header(path)?;
@@ -250,6 +260,7 @@ impl VolumeSource {
             VolumeSource::Nrrd(path) => nrrd::read_header(path)?.volume_header(path),
             VolumeSource::Nifti(spec) => spec.header(),
             VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }.header(),
+            VolumeSource::Dicom(spec) => spec.header(),
             VolumeSource::Raw(spec) => spec.header(),
             VolumeSource::Synthetic(s) => Ok(s.header()),
         }
@@ -265,6 +276,7 @@ impl VolumeSource {
             VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }
                 .load_hashed(limits, false)
                 .map(|(v, _)| v),
+            VolumeSource::Dicom(spec) => spec.load_hashed(limits, false).map(|(v, _)| v),
             VolumeSource::Raw(spec) => spec.load(limits),
             VolumeSource::Synthetic(s) => s.load(limits),
         }
@@ -280,6 +292,7 @@ impl VolumeSource {
             VolumeSource::Nrrd(path) => nrrd::storage(path),
             VolumeSource::Nifti(spec) => spec.storage(),
             VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }.storage(),
+            VolumeSource::Dicom(spec) => spec.storage(),
             VolumeSource::Raw(spec) => spec.storage(),
             VolumeSource::Synthetic(s) => Ok(Storage::Read {
                 bytes: s.header().data_bytes(),
@@ -296,6 +309,7 @@ impl VolumeSource {
             VolumeSource::Nrrd(path) => nrrd::input_files(path)?,
             VolumeSource::Nifti(spec) => vec![spec.path.clone()],
             VolumeSource::MetaImage(path) => metaimage::input_files(path)?,
+            VolumeSource::Dicom(spec) => spec.input_files()?,
             VolumeSource::Raw(spec) => vec![spec.path.clone()],
             VolumeSource::Synthetic(_) => Vec::new(),
         };
@@ -321,6 +335,7 @@ impl VolumeSource {
             VolumeSource::MetaImage(path) => {
                 metaimage::MetaSpec { path }.load_hashed(limits, true)?
             }
+            VolumeSource::Dicom(spec) => spec.load_hashed(limits, true)?,
             VolumeSource::Raw(spec) => spec.load_hashed(limits, true)?,
             VolumeSource::Synthetic(s) => (s.load(limits)?, None),
         };
@@ -344,6 +359,7 @@ impl VolumeSource {
             VolumeSource::Nrrd(p) => Some(p),
             VolumeSource::Nifti(n) => Some(&n.path),
             VolumeSource::MetaImage(p) => Some(p),
+            VolumeSource::Dicom(d) => Some(&d.dir),
             VolumeSource::Raw(r) => Some(&r.path),
             VolumeSource::Synthetic(_) => None,
         }

@@ -42,7 +42,8 @@ fn nrrd_case(path: &Path) {
     let _ = volcast::volume::nrrd::read_header(path);
 }
 
-/// What `volcast info` does with a NIfTI or MetaImage file, within 64 MiB.
+/// What `volcast info` does with a NIfTI or MetaImage file or a DICOM folder, within
+/// 64 MiB.
 fn formats_case(path: &Path) {
     let limits = Limits {
         max_bytes: 64 << 20,
@@ -103,8 +104,7 @@ fn run(kind: Kind) {
     // the panic messages of caught cases are expected noise only on failure
     while start.elapsed() < BUDGET {
         let (name, bytes) = case(kind, &seeds, seed, n);
-        let path = tmp.path().join(&name);
-        std::fs::write(&path, &bytes).unwrap();
+        let path = mutate::place(tmp.path(), &name, &bytes).unwrap();
         let outcome = catch_unwind(AssertUnwindSafe(|| match kind {
             Kind::Nrrd => nrrd_case(&path),
             Kind::Scene => scene_case(&path),

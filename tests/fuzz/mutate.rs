@@ -482,6 +482,11 @@ pub fn corpus(kind: Kind, root: &Path) -> Vec<Seed> {
                 root.join("tests/fixtures/formats"),
                 &["nii", "gz", "mha", "mhd"],
             ));
+            // DICOM slices: a case is one slice in a folder of its own (see `place`)
+            seeds.extend(read_dir(
+                root.join("tests/fixtures/formats/dicom_ct"),
+                &["dcm"],
+            ));
         }
         Kind::Scene => {
             let data = root.join("data");
@@ -507,6 +512,20 @@ pub fn corpus(kind: Kind, root: &Path) -> Vec<Seed> {
         }
     }
     seeds
+}
+
+/// Writes case `bytes` as `name` in `dir` and returns what volcast is given: the file,
+/// or for a DICOM slice (`.dcm`) the folder `case_dicom` holding it alone.
+pub fn place(dir: &Path, name: &str, bytes: &[u8]) -> std::io::Result<PathBuf> {
+    if name.ends_with(".dcm") {
+        let folder = dir.join("case_dicom");
+        std::fs::create_dir_all(&folder)?;
+        std::fs::write(folder.join(name), bytes)?;
+        return Ok(folder);
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, bytes)?;
+    Ok(path)
 }
 
 /// Case `index` of `kind` under `seed`: the file name to write it as, and its bytes.

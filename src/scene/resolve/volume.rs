@@ -2,6 +2,7 @@
 //! window and crop.
 
 use super::*;
+use crate::volume::dicom::DicomSpec;
 use crate::volume::nifti::NiftiSpec;
 use crate::volume::FileFormat;
 
@@ -11,6 +12,7 @@ enum Format {
     Nrrd,
     Nifti,
     MetaImage,
+    Dicom,
     Raw,
 }
 
@@ -52,6 +54,12 @@ impl Resolver<'_> {
                     self.err(
                         i.span(),
                         "`index` is only used by NIfTI files (.nii, .nii.gz)",
+                    );
+                }
+                if let Some(s) = &v.series {
+                    self.err(
+                        s.span(),
+                        "`series` is only used by DICOM folders (format = \"dicom\")",
                     );
                 }
                 if let Some(f) = &v.format {
@@ -286,6 +294,7 @@ impl Resolver<'_> {
                 ("nrrd", Some(Format::Nrrd)),
                 ("nifti", Some(Format::Nifti)),
                 ("metaimage", Some(Format::MetaImage)),
+                ("dicom", Some(Format::Dicom)),
                 ("raw", Some(Format::Raw)),
             ],
             by_name,
@@ -308,10 +317,18 @@ impl Resolver<'_> {
                 );
             }
         }
+        if format != Some(Format::Dicom) {
+            if let Some(s) = &v.series {
+                self.err(
+                    s.span(),
+                    "`series` is only used by DICOM folders (format = \"dicom\"): it chooses a series by its SeriesInstanceUID",
+                );
+            }
+        }
         match format {
             None => {
                 self.err(p.span(), format!(
-                    "cannot tell the format of \"{}\": use a .nrrd/.nhdr, .nii/.nii.gz or .mha/.mhd file, or set format = \"raw\" with sizes and type",
+                    "cannot tell the format of \"{}\": use a .nrrd/.nhdr, .nii/.nii.gz or .mha/.mhd file, or set format = \"raw\" with sizes and type, or format = \"dicom\" for a folder of DICOM slices",
                     p.get_ref()
                 ));
                 None
@@ -330,6 +347,13 @@ impl Resolver<'_> {
                     raw_keys,
                 );
                 Some(VolumeSource::MetaImage(path))
+            }
+            Some(Format::Dicom) => {
+                self.not_for("by DICOM series (their files describe the data)", raw_keys);
+                Some(VolumeSource::Dicom(DicomSpec {
+                    dir: path,
+                    series: v.series.as_ref().map(|s| s.get_ref().clone()),
+                }))
             }
             Some(Format::Raw) => self.raw(v, path, p.span()),
         }
