@@ -79,12 +79,17 @@ pub(super) fn scan(path: &Path) -> Result<Option<Scanned>, VolumeError> {
     };
     let (explicit, little) = match transfer_syntax.as_str() {
         "1.2.840.10008.1.2" => (false, true),
-        "1.2.840.10008.1.2.2" => (true, false),
-        _ => (true, true),
+        "1.2.840.10008.1.2.1" => (true, true),
+        // any other syntax is refused by name before the crate reads the data set
+        // (which may be deflated, so not walkable here)
+        _ => {
+            return Ok(Some(Scanned {
+                transfer_syntax,
+                sop_class,
+            }))
+        }
     };
-    // the data set: only the lengths matter; compressed transfer syntaxes are refused
-    // by the caller before the crate reads pixel data, so their pixel sequences are
-    // walked as sequences (their fragments have defined lengths)
+    // the data set: only the lengths matter
     r.walk(explicit, little, 0, None)?;
     Ok(Some(Scanned {
         transfer_syntax,
@@ -354,12 +359,15 @@ mod tests {
     use super::*;
 
     fn file(body: &[u8]) -> (tempfile::TempDir, std::path::PathBuf) {
+        file_with(b"1.2.840.10008.1.2.1\0", body)
+    }
+
+    fn file_with(ts: &[u8], body: &[u8]) -> (tempfile::TempDir, std::path::PathBuf) {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("x.dcm");
         let mut b = vec![0u8; 128];
         b.extend(b"DICM");
         // (0002,0010) UI, explicit VR LE
-        let ts = b"1.2.840.10008.1.2.1\0";
         b.extend([0x02, 0x00, 0x10, 0x00, b'U', b'I']);
         b.extend((ts.len() as u16).to_le_bytes());
         b.extend(ts);
@@ -382,6 +390,12 @@ mod tests {
         assert!(
             e.contains("(7FE0,0010)") && e.contains("declares 4294967294 bytes"),
             "{e}"
+        );
+        // a deflated data set is not walked: its syntax is refused by name later
+        let (_d, p) = file_with(b"1.2.840.10008.1.2.1.99", &[0x78, 0x9c, 1, 2, 3]);
+        assert_eq!(
+            scan(&p).unwrap().unwrap().transfer_syntax,
+            "1.2.840.10008.1.2.1.99"
         );
         // not DICOM
         let dir = tempfile::tempdir().unwrap();
