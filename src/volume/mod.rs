@@ -4,9 +4,12 @@
 //! VolumeSource --header()--> VolumeHeader (sizes, type, geometry: no voxel memory yet)
 //!              --load()----> Volume        (data in its native type, limits checked first)
 //! ```
-//! Sources are NRRD files (attached or detached header, [`nrrd`]), headerless raw
-//! files ([`raw`]) and analytic fields sampled on a grid ([`synthetic`]). Raw data in
-//! the machine's byte order, in one file, is memory-mapped rather than read
+//! Sources are NRRD files (attached or detached header, [`nrrd`]), NIfTI-1 files
+//! ([`nifti`]), MetaImage files ([`metaimage`]), DICOM series ([`dicom`]), headerless
+//! raw files ([`raw`]) and analytic fields sampled on a grid ([`synthetic`]). Each file
+//! keeps its own world coordinates; a stored-to-physical map (NIfTI `scl_slope`, DICOM
+//! rescale) is kept beside the voxels as a [`Rescale`], never applied to them. Raw data
+//! in the machine's byte order, in one file, is memory-mapped rather than read
 //! ([`mapped`]); [`VolumeSource::storage`] tells which before loading. Nothing in this
 //! module knows about cameras or render modes.
 
