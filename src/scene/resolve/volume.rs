@@ -1,5 +1,5 @@
-//! `[volume]`: a volume file (NRRD, NIfTI, MetaImage), a raw file or a synthetic field, its
-//! window and crop.
+//! `[volume]`: a volume file (NRRD, NIfTI, MetaImage), a DICOM folder, a raw file or a
+//! synthetic field, its window and crop.
 
 use super::*;
 use crate::volume::dicom::DicomSpec;
