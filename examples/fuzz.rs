@@ -1,16 +1,16 @@
-//! The long fuzz run: seeded mutations of the NRRD fixtures (through `volcast info`)
-//! and of the example scenes (through `volcast check`), every case its own process
+//! The long fuzz run: seeded mutations of the NRRD, NIfTI and MetaImage fixtures
+//! (through `volcast info`) and of the example scenes (through `volcast check`), every case its own process
 //! under a timeout and a memory limit, so that hangs and aborts are caught, not
 //! only panics.
 //!
 //! ```text
 //! cargo build --release
-//! cargo run --release --example fuzz -- [--kind nrrd|scene|both] [--cases N] [--seed S]
+//! cargo run --release --example fuzz -- [--kind nrrd|formats|scene|both|all] [--cases N] [--seed S]
 //!     [--jobs J] [--timeout SECONDS] [--memory BYTES] [--volcast PATH] [--out DIR]
 //!     [--dump CASE]
 //! ```
 //!
-//! Defaults: both kinds, 100000 cases each, seed 1, one job per core, 10 s, 1 GiB of
+//! Defaults: all three kinds (`both` is nrrd and scene), 100000 cases each, seed 1, one job per core, 10 s, 1 GiB of
 //! address space per case (and `--max-memory 256M` for volcast itself), the release
 //! binary beside this example, failures saved in `fuzz-failures/`. A case fails if
 //! volcast is killed by a signal (an abort, a crash), runs past the timeout, exits
@@ -44,7 +44,7 @@ struct Options {
 }
 
 fn usage() -> String {
-    "usage: fuzz [--kind nrrd|scene|both] [--cases N] [--seed S] [--jobs J] [--timeout SECONDS] [--memory BYTES] [--volcast PATH] [--out DIR] [--dump CASE]".into()
+    "usage: fuzz [--kind nrrd|formats|scene|both|all] [--cases N] [--seed S] [--jobs J] [--timeout SECONDS] [--memory BYTES] [--volcast PATH] [--out DIR] [--dump CASE]".into()
 }
 
 fn options() -> Result<Options, String> {
@@ -57,7 +57,7 @@ fn options() -> Result<Options, String> {
         .unwrap_or_else(|| PathBuf::from("volcast"));
     let mut o = Options {
         dump: None,
-        kinds: vec![Kind::Nrrd, Kind::Scene],
+        kinds: vec![Kind::Nrrd, Kind::Formats, Kind::Scene],
         cases: 100_000,
         seed: 1,
         jobs: std::thread::available_parallelism().map_or(1, |n| n.get()),
@@ -81,8 +81,12 @@ fn options() -> Result<Options, String> {
                 o.kinds = match value()?.as_str() {
                     "nrrd" => vec![Kind::Nrrd],
                     "scene" => vec![Kind::Scene],
+                    "formats" => vec![Kind::Formats],
                     "both" => vec![Kind::Nrrd, Kind::Scene],
-                    other => return Err(format!("--kind {other}: nrrd, scene or both")),
+                    "all" => vec![Kind::Nrrd, Kind::Formats, Kind::Scene],
+                    other => {
+                        return Err(format!("--kind {other}: nrrd, formats, scene, both or all"))
+                    }
                 }
             }
             "--cases" => o.cases = num(value()?)?,
@@ -118,7 +122,7 @@ enum Outcome {
 fn run_case(o: &Options, kind: Kind, dir: &Path, name: &str) -> Outcome {
     let mut cmd = Command::new(&o.volcast);
     match kind {
-        Kind::Nrrd => cmd.args(["info", name, "--max-memory", "256M"]),
+        Kind::Nrrd | Kind::Formats => cmd.args(["info", name, "--max-memory", "256M"]),
         Kind::Scene => cmd.args(["check", name, "--max-memory", "256M", "--out", "out"]),
     };
     cmd.current_dir(dir)
@@ -200,9 +204,9 @@ fn run_case(o: &Options, kind: Kind, dir: &Path, name: &str) -> Outcome {
     }
 }
 
-/// Copies the NRRD fixtures (and their data files) into `dir`.
-fn copy_fixtures(root: &Path, dir: &Path) -> std::io::Result<()> {
-    for e in std::fs::read_dir(root.join("tests/fixtures/nrrd"))? {
+/// Copies the fixtures in `folder` (and their data files) into `dir`.
+fn copy_fixtures(root: &Path, folder: &str, dir: &Path) -> std::io::Result<()> {
+    for e in std::fs::read_dir(root.join(folder))? {
         let p = e?.path();
         if p.is_file() {
             std::fs::copy(&p, dir.join(p.file_name().unwrap_or_default()))?;
@@ -228,8 +232,8 @@ fn fuzz(o: &Options, kind: Kind) -> u64 {
                 ));
                 let _ = std::fs::remove_dir_all(&dir);
                 std::fs::create_dir_all(&dir).expect("a temporary folder");
-                if kind == Kind::Nrrd {
-                    copy_fixtures(root, &dir).expect("the fixtures");
+                if let Some(folder) = kind.fixtures() {
+                    copy_fixtures(root, folder, &dir).expect("the fixtures");
                 }
                 mutate::prepare_dir(&dir);
                 loop {
@@ -238,11 +242,11 @@ fn fuzz(o: &Options, kind: Kind) -> u64 {
                         break;
                     }
                     let (name, bytes) = case(kind, seeds, o.seed, i);
-                    let path = dir.join(&name);
-                    if std::fs::write(&path, &bytes).is_err() {
+                    let Ok(path) = mutate::place(&dir, &name, &bytes) else {
                         continue;
-                    }
-                    if let Outcome::Failed(why) = run_case(o, kind, &dir, &name) {
+                    };
+                    let given = path.strip_prefix(&dir).unwrap_or(&path).to_string_lossy();
+                    if let Outcome::Failed(why) = run_case(o, kind, &dir, &given) {
                         failures.fetch_add(1, Ordering::Relaxed);
                         let keep = o.out.join(format!("{}-{}-{i}", kind.name(), o.seed));
                         let _ = std::fs::create_dir_all(&keep);

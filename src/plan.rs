@@ -493,6 +493,13 @@ impl Plan {
             sp[2],
             human_bytes(header.data_bytes())
         );
+        if !header.rescale.is_identity() {
+            let _ = writeln!(
+                s,
+                "values   {} * stored + {} (the volume's rescale, folded into the window: windows are values)",
+                header.rescale.slope, header.rescale.intercept
+            );
+        }
         match scene.volume.window {
             Some([lo, hi]) => {
                 let units = match scene.volume.units {

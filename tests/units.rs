@@ -3,7 +3,7 @@
 //! same bytes as the normalised values `(x - lo) / (hi - lo)` computed here, values
 //! outside the window and a missing window are errors, and `check` shows both numbers.
 
-use crate::util::{root, volcast};
+use crate::util::{rendered_nrrds, root, volcast};
 
 /// The scene of `passes` over the shipped CT head (values 0..3926), with its window,
 /// 32 x 32 NRRD images, one frame; `units` is the `[volume] units` line (or nothing).
@@ -20,26 +20,7 @@ fn scene(units: &str, rest: &str) -> String {
 
 /// Renders `text` and returns the bytes of every image, by file name.
 fn render(text: &str) -> Vec<(String, Vec<u8>)> {
-    let tmp = tempfile::tempdir().unwrap();
-    std::fs::write(tmp.path().join("s.toml"), text).unwrap();
-    let o = volcast(
-        tmp.path(),
-        &[
-            "render", "s.toml", "--out", "out", "--frames", "0", "--quiet",
-        ],
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(tmp.path().join("out"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "nrrd"))
-        .map(|p| {
-            let name = p.file_name().unwrap().to_string_lossy().into_owned();
-            (name, std::fs::read(&p).unwrap())
-        })
-        .collect();
-    files.sort();
-    files
+    rendered_nrrds(text, &["--frames", "0"])
 }
 
 /// `(x - lo) / (hi - lo)` in f64 for the window above, written so TOML reads back the

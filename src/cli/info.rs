@@ -19,6 +19,9 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
     let stats = Stats::of(&volume.data);
     let sp = h.geometry.spacings();
     let q = |x: f64| stats.quantile(x);
+    // the physical values the stored range stands for (NIfTI scl_slope/scl_inter)
+    let mut value_range = [stats.min, stats.max].map(|x| h.rescale.apply(x));
+    value_range.sort_by(f64::total_cmp);
     if a.json {
         let json = serde_json::json!({
             "source": h.source,
@@ -36,6 +39,9 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
             "non_finite": stats.non_finite,
             "percentiles": { "1": finite_or_null(q(0.01)), "50": finite_or_null(q(0.5)), "99": finite_or_null(q(0.99)) },
             "histogram": { "bins": stats.histogram.len(), "min": finite_or_null(stats.min), "max": finite_or_null(stats.max), "counts": stats.histogram },
+            "rescale": { "slope": h.rescale.slope, "intercept": h.rescale.intercept },
+            "value_min": finite_or_null(value_range[0]),
+            "value_max": finite_or_null(value_range[1]),
             "fields": h.fields.iter().map(|(k, v)| (k.clone(), serde_json::Value::String(v.clone()))).collect::<serde_json::Map<_, _>>(),
         });
         let mut text = serde_json::to_string_pretty(&json)?;
@@ -80,6 +86,13 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
         "range      {} .. {} (mean {:.6})",
         stats.min, stats.max, stats.mean
     )?;
+    if !h.rescale.is_identity() {
+        writeln!(
+            s,
+            "values     {} .. {} (= {} * stored + {}: the units of windows and of units = \"data\")",
+            value_range[0], value_range[1], h.rescale.slope, h.rescale.intercept
+        )?;
+    }
     if stats.non_finite > 0 {
         writeln!(
             s,
@@ -110,7 +123,8 @@ fn finite_or_null(x: f64) -> serde_json::Value {
     }
 }
 
-/// The volume a path names: a NRRD file, or the `[volume]` of a scene file.
+/// The volume a path names: a volume file (NRRD, NIfTI, MetaImage), or the `[volume]`
+/// of a scene file.
 fn source_of(path: &Path) -> anyhow::Result<VolumeSource> {
     let ext = path
         .extension()
@@ -119,7 +133,7 @@ fn source_of(path: &Path) -> anyhow::Result<VolumeSource> {
     if ext == "toml" {
         Ok(volcast::scene::load(path)?.volume.source)
     } else {
-        Ok(VolumeSource::Nrrd(path.to_path_buf()))
+        Ok(VolumeSource::from_path(path)?)
     }
 }
 

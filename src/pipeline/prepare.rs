@@ -3,8 +3,12 @@
 use super::*;
 
 /// The normalisation of the scene's value window, or of the data's finite range.
+/// Both are in the volume's physical values (its [`Rescale`](crate::volume::Rescale)
+/// folded in: the voxels keep their stored values, the window is mapped to them).
 pub fn value_window(scene: &Scene, volume: &Volume) -> Result<Normalize, Error> {
-    if let Some([lo, hi]) = scene.volume.window {
+    let rescale = volume.header.rescale;
+    if let Some(window) = scene.volume.window {
+        let [lo, hi] = rescale.stored_window(window);
         return Ok(Normalize::new(lo, hi));
     }
     let stats = Stats::of(&volume.data);
@@ -18,5 +22,6 @@ pub fn value_window(scene: &Scene, volume: &Volume) -> Result<Normalize, Error> 
         });
     }
     let w = Window::from_range(stats.min, stats.max);
-    Ok(Normalize::new(w.lo, w.hi))
+    let [lo, hi] = rescale.stored_range_window([w.lo, w.hi]);
+    Ok(Normalize::new(lo, hi))
 }

@@ -84,9 +84,11 @@ pub struct Normalize {
 }
 
 impl Normalize {
-    /// The map for the value window `[lo, hi]` (`lo < hi`, both finite).
+    /// The map for the value window `[lo, hi]` (`lo != hi`, both finite): `lo` maps
+    /// to 0 and `hi` to 1. A decreasing window (`lo > hi`) inverts the values: the
+    /// stored window of a volume whose rescale slope is negative.
     pub fn new(lo: f64, hi: f64) -> Normalize {
-        debug_assert!(lo < hi, "window must be increasing");
+        debug_assert!(lo != hi, "window must not be empty");
         Normalize {
             lo,
             scale: 1.0 / (hi - lo),

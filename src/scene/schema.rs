@@ -53,6 +53,10 @@ pub struct VolumeTable {
     pub window: Sp<[f64; 2]>,
     pub units: Sp<String>,
     pub crop: Sp<[[i64; 2]; 3]>,
+    // 4D NIfTI
+    pub index: Sp<i64>,
+    // DICOM
+    pub series: Sp<String>,
     // raw
     // numbers, so that `4e9` is reported as too large rather than as a float
     pub sizes: Sp<Vec<f64>>,

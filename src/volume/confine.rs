@@ -78,21 +78,33 @@ impl Root {
     }
 }
 
-/// Every file of `source` (the volume's path, the NRRD header's data files) must lie
-/// in `root`. Reads the NRRD header only after its own path was checked.
+/// Every file of `source` (the volume's path, the data files a NRRD or MetaImage
+/// header names) must lie in `root`. Reads a header only after its own path was
+/// checked.
 pub fn check_source(source: &VolumeSource, root: &Root) -> Result<(), VolumeError> {
-    match source {
-        VolumeSource::Synthetic(_) => Ok(()),
-        VolumeSource::Raw(spec) => root.check_file(&spec.path, "the raw volume"),
-        VolumeSource::Nrrd(path) => {
-            root.check_file(path, "the volume")?;
-            let _scope = Scope::enter(root);
-            for f in super::nrrd::input_files(path)?.iter().skip(1) {
-                root.check_file(f, &format!("a data file named by {}", path.display()))?;
-            }
-            Ok(())
-        }
+    let Some(path) = source.path() else {
+        return Ok(());
+    };
+    if matches!(source, VolumeSource::Raw(_)) {
+        return root.check_file(path, "the raw volume");
     }
+    root.check_file(path, "the volume")?;
+    let _scope = Scope::enter(root);
+    let files = match source {
+        VolumeSource::Nrrd(p) => super::nrrd::input_files(p)?,
+        VolumeSource::MetaImage(p) => super::metaimage::input_files(p)?,
+        VolumeSource::Dicom(d) => {
+            // every slice, with the folder itself first
+            let mut files = vec![d.dir.clone()];
+            files.extend(d.input_files()?);
+            files
+        }
+        _ => Vec::new(),
+    };
+    for f in files.iter().skip(1) {
+        root.check_file(f, &format!("a data file named by {}", path.display()))?;
+    }
+    Ok(())
 }
 
 /// The folder `out` (which may not exist yet) must lie in `root`: its longest

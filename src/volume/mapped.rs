@@ -85,6 +85,30 @@ pub enum Storage {
 }
 
 impl Storage {
+    /// The storage of `bytes` uncompressed bytes of `ty` at `offset` of `path`, stored
+    /// in the given byte order: mapped in the machine's byte order, else read (and
+    /// byte-swapped).
+    pub(crate) fn uncompressed(
+        ty: ScalarType,
+        little_endian: bool,
+        path: &Path,
+        offset: u64,
+        bytes: u64,
+    ) -> Storage {
+        if is_native_order(ty, little_endian) {
+            Storage::Mapped {
+                path: path.to_path_buf(),
+                offset,
+                bytes,
+            }
+        } else {
+            Storage::Read {
+                bytes,
+                reason: ReadReason::ByteOrder,
+            }
+        }
+    }
+
     /// Bytes of voxel memory volcast allocates (0 when mapped).
     pub fn allocated_bytes(&self) -> u64 {
         match self {
@@ -118,6 +142,9 @@ pub enum ReadReason {
     Encoding(Encoding),
     /// The data is split over this many files (`data file` pattern or `LIST`).
     DataFiles(u64),
+    /// A compressed file or data section (what it is, for the message:
+    /// "a gzip-compressed file (.nii.gz)", "zlib-compressed data").
+    Compressed(&'static str),
 }
 
 impl fmt::Display for ReadReason {
@@ -131,6 +158,7 @@ impl fmt::Display for ReadReason {
             }),
             ReadReason::Encoding(e) => write!(f, "{} encoding", e.name()),
             ReadReason::DataFiles(n) => write!(f, "data split over {n} files"),
+            ReadReason::Compressed(what) => f.write_str(what),
         }
     }
 }

@@ -4,20 +4,28 @@
 //! VolumeSource --header()--> VolumeHeader (sizes, type, geometry: no voxel memory yet)
 //!              --load()----> Volume        (data in its native type, limits checked first)
 //! ```
-//! Sources are NRRD files (attached or detached header, [`nrrd`]), headerless raw
-//! files ([`raw`]) and analytic fields sampled on a grid ([`synthetic`]). Raw data in
-//! the machine's byte order, in one file, is memory-mapped rather than read
+//! Sources are NRRD files (attached or detached header, [`nrrd`]), NIfTI-1 files
+//! ([`nifti`]), MetaImage files ([`metaimage`]), DICOM series ([`dicom`]), headerless
+//! raw files ([`raw`]) and analytic fields sampled on a grid ([`synthetic`]). Each file
+//! keeps its own world coordinates; a stored-to-physical map (NIfTI `scl_slope`, DICOM
+//! rescale) is kept beside the voxels as a [`Rescale`], never applied to them. Raw data
+//! in the machine's byte order, in one file, is memory-mapped rather than read
 //! ([`mapped`]); [`VolumeSource::storage`] tells which before loading. Nothing in this
 //! module knows about cameras or render modes.
 
 pub mod confine;
+pub mod dicom;
 pub mod geometry;
 pub mod limits;
 pub mod mapped;
+pub mod metaimage;
+pub mod nifti;
 pub mod nrrd;
 pub mod raw;
+pub mod rescale;
 pub mod scalar;
 pub mod stats;
+mod stream;
 pub mod synthetic;
 
 use std::path::{Path, PathBuf};
@@ -25,6 +33,7 @@ use std::path::{Path, PathBuf};
 pub use geometry::Geometry;
 pub use limits::Limits;
 pub use mapped::{MappedVoxels, ReadReason, Storage};
+pub use rescale::Rescale;
 pub use scalar::{ScalarType, TypedVoxels, VolumeData, Voxel, Voxels};
 pub use stats::Stats;
 pub use synthetic::Synthetic;
@@ -135,6 +144,12 @@ pub fn human_bytes(b: u64) -> String {
 pub enum VolumeSource {
     /// A `.nrrd` or `.nhdr` file.
     Nrrd(PathBuf),
+    /// A NIfTI-1 file (`.nii`, `.nii.gz`) and the volume of it to render.
+    Nifti(nifti::NiftiSpec),
+    /// A MetaImage file (`.mha`, or a `.mhd` header and its data file).
+    MetaImage(PathBuf),
+    /// A folder of DICOM slices (`format = "dicom"`) and the series to render.
+    Dicom(dicom::DicomSpec),
     /// A headerless file described by the scene.
     Raw(raw::RawSpec),
     /// An analytic field sampled on a grid spanning [-1, 1]^3.
@@ -154,6 +169,9 @@ pub struct VolumeHeader {
     pub source: String,
     /// Descriptive fields worth showing (`content`, `key:=value` pairs, units, ...).
     pub fields: Vec<(String, String)>,
+    /// What the stored values stand for (NIfTI `scl_slope`/`scl_inter`); folded into
+    /// the value window, never applied to the voxels.
+    pub rescale: Rescale,
 }
 
 impl VolumeHeader {
@@ -187,11 +205,65 @@ impl Volume {
     }
 }
 
+/// The file formats a volume path can name, told by its extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FileFormat {
+    /// `.nrrd`, `.nhdr`
+    Nrrd,
+    /// `.nii`, `.nii.gz`
+    Nifti,
+    /// `.mha`, `.mhd`
+    MetaImage,
+}
+
+impl FileFormat {
+    /// The format a file name's extension names (case-insensitive), if any.
+    pub fn from_path(path: &Path) -> Option<FileFormat> {
+        let name = path.file_name()?.to_string_lossy().to_ascii_lowercase();
+        let ext = |e: &str| name.ends_with(e);
+        if ext(".nrrd") || ext(".nhdr") {
+            Some(FileFormat::Nrrd)
+        } else if ext(".nii") || ext(".nii.gz") {
+            Some(FileFormat::Nifti)
+        } else if ext(".mha") || ext(".mhd") {
+            Some(FileFormat::MetaImage)
+        } else {
+            None
+        }
+    }
+}
+
 impl VolumeSource {
+    /// The source of a volume file named on the command line (`volcast info`): its
+    /// format from the extension (NRRD when unknown); the first volume of a 4D NIfTI;
+    /// a folder is a DICOM series.
+    pub fn from_path(path: &Path) -> Result<VolumeSource, VolumeError> {
+        if path.is_dir() {
+            return Ok(VolumeSource::Dicom(dicom::DicomSpec {
+                dir: path.to_path_buf(),
+                series: None,
+            }));
+        }
+        Ok(match FileFormat::from_path(path) {
+            Some(FileFormat::Nifti) => {
+                let (h, _) = nifti::read_header(path)?;
+                VolumeSource::Nifti(nifti::NiftiSpec {
+                    path: path.to_path_buf(),
+                    index: (h.volumes() > 1).then_some(0),
+                })
+            }
+            Some(FileFormat::MetaImage) => VolumeSource::MetaImage(path.to_path_buf()),
+            Some(FileFormat::Nrrd) | None => VolumeSource::Nrrd(path.to_path_buf()),
+        })
+    }
+
     /// Reads only what describes the volume: sizes, type, geometry.
     pub fn header(&self) -> Result<VolumeHeader, VolumeError> {
         match self {
             VolumeSource::Nrrd(path) => nrrd::read_header(path)?.volume_header(path),
+            VolumeSource::Nifti(spec) => spec.header(),
+            VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }.header(),
+            VolumeSource::Dicom(spec) => spec.header(),
             VolumeSource::Raw(spec) => spec.header(),
             VolumeSource::Synthetic(s) => Ok(s.header()),
         }
@@ -203,6 +275,11 @@ impl VolumeSource {
     pub fn load(&self, limits: &Limits) -> Result<Volume, VolumeError> {
         match self {
             VolumeSource::Nrrd(path) => load_nrrd(path, limits),
+            VolumeSource::Nifti(spec) => spec.load(limits),
+            VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }
+                .load_hashed(limits, false)
+                .map(|(v, _)| v),
+            VolumeSource::Dicom(spec) => spec.load_hashed(limits, false).map(|(v, _)| v),
             VolumeSource::Raw(spec) => spec.load(limits),
             VolumeSource::Synthetic(s) => s.load(limits),
         }
@@ -216,6 +293,9 @@ impl VolumeSource {
     pub fn storage(&self) -> Result<Storage, VolumeError> {
         match self {
             VolumeSource::Nrrd(path) => nrrd::storage(path),
+            VolumeSource::Nifti(spec) => spec.storage(),
+            VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }.storage(),
+            VolumeSource::Dicom(spec) => spec.storage(),
             VolumeSource::Raw(spec) => spec.storage(),
             VolumeSource::Synthetic(s) => Ok(Storage::Read {
                 bytes: s.header().data_bytes(),
@@ -230,6 +310,9 @@ impl VolumeSource {
     pub fn stamps(&self) -> Result<Vec<FileStamp>, VolumeError> {
         let files = match self {
             VolumeSource::Nrrd(path) => nrrd::input_files(path)?,
+            VolumeSource::Nifti(spec) => vec![spec.path.clone()],
+            VolumeSource::MetaImage(path) => metaimage::input_files(path)?,
+            VolumeSource::Dicom(spec) => spec.input_files()?,
             VolumeSource::Raw(spec) => vec![spec.path.clone()],
             VolumeSource::Synthetic(_) => Vec::new(),
         };
@@ -251,6 +334,11 @@ impl VolumeSource {
                 let vh = header.volume_header(path)?;
                 (Volume { header: vh, data }, Some(hash))
             }
+            VolumeSource::Nifti(spec) => spec.load_hashed(limits, true)?,
+            VolumeSource::MetaImage(path) => {
+                metaimage::MetaSpec { path }.load_hashed(limits, true)?
+            }
+            VolumeSource::Dicom(spec) => spec.load_hashed(limits, true)?,
             VolumeSource::Raw(spec) => spec.load_hashed(limits, true)?,
             VolumeSource::Synthetic(s) => (s.load(limits)?, None),
         };
@@ -272,6 +360,9 @@ impl VolumeSource {
     pub fn path(&self) -> Option<&Path> {
         match self {
             VolumeSource::Nrrd(p) => Some(p),
+            VolumeSource::Nifti(n) => Some(&n.path),
+            VolumeSource::MetaImage(p) => Some(p),
+            VolumeSource::Dicom(d) => Some(&d.dir),
             VolumeSource::Raw(r) => Some(&r.path),
             VolumeSource::Synthetic(_) => None,
         }

@@ -9,10 +9,7 @@ use std::path::PathBuf;
 
 use super::mapped::{self, check_regular_file, is_native_order, open_for_mapping};
 use super::nrrd::{ElementSink, ReadError};
-use super::{
-    Geometry, Limits, ReadReason, ScalarType, Storage, Volume, VolumeData, VolumeError,
-    VolumeHeader,
-};
+use super::{Geometry, Limits, ScalarType, Storage, Volume, VolumeData, VolumeError, VolumeHeader};
 
 /// A raw file and the description the scene gives of it.
 #[derive(Clone, Debug, PartialEq)]
@@ -42,6 +39,7 @@ impl RawSpec {
             geometry: Geometry::from_spacing(self.spacing),
             source: self.path.display().to_string(),
             fields: Vec::new(),
+            rescale: Default::default(),
         })
     }
 
@@ -55,18 +53,13 @@ impl RawSpec {
     pub fn storage(&self) -> Result<Storage, VolumeError> {
         let offset = self.data_start()?;
         let bytes = self.check_params()?;
-        Ok(if self.is_mappable() {
-            Storage::Mapped {
-                path: self.path.clone(),
-                offset,
-                bytes,
-            }
-        } else {
-            Storage::Read {
-                bytes,
-                reason: ReadReason::ByteOrder,
-            }
-        })
+        Ok(Storage::uncompressed(
+            self.scalar_type,
+            self.little_endian,
+            &self.path,
+            offset,
+            bytes,
+        ))
     }
 
     /// Maps the voxels (data in native byte order, not counted against `limits`), or

@@ -146,6 +146,7 @@ impl Synthetic {
             geometry: self.geometry(),
             source: format!("synthetic {}", self.field.name()),
             fields: Vec::new(),
+            rescale: Default::default(),
         }
     }
 

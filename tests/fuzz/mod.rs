@@ -1,5 +1,6 @@
 //! A short, seeded fuzz run through the library's entry points (issue 10, item 9):
-//! mutated NRRD fixtures through the reader (header, storage, load, statistics) and
+//! mutated NRRD fixtures through the reader (header, storage, load, statistics), the
+//! same for the NIfTI and MetaImage fixtures (issue 9), and
 //! mutated example scenes through the scene parser, the header and the plan (what
 //! `volcast check` does), about two seconds each, every panic caught and reported
 //! with the case that caused it. The long run, every case its own process under a
@@ -41,6 +42,22 @@ fn nrrd_case(path: &Path) {
     let _ = volcast::volume::nrrd::read_header(path);
 }
 
+/// What `volcast info` does with a NIfTI or MetaImage file or a DICOM folder, within
+/// 64 MiB.
+fn formats_case(path: &Path) {
+    let limits = Limits {
+        max_bytes: 64 << 20,
+    };
+    let Ok(source) = VolumeSource::from_path(path) else {
+        return;
+    };
+    let _ = source.header();
+    let _ = source.storage();
+    if let Ok(v) = source.load(&limits) {
+        let _ = Stats::of(&v.data);
+    }
+}
+
 /// What `volcast check` does with a scene file.
 fn scene_case(path: &Path) {
     let Ok(scene) = volcast::scene::load(path) else {
@@ -61,9 +78,9 @@ fn scene_case(path: &Path) {
     }
 }
 
-/// Copies the NRRD fixtures (and their data files) into `dir`.
-fn copy_fixtures(dir: &Path) {
-    let src = crate::util::root().join("tests/fixtures/nrrd");
+/// Copies the fixtures of a kind (and their data files) into `dir`.
+fn copy_fixtures(folder: &str, dir: &Path) {
+    let src = crate::util::root().join(folder);
     for e in std::fs::read_dir(src).unwrap() {
         let p = e.unwrap().path();
         if p.is_file() {
@@ -75,10 +92,10 @@ fn copy_fixtures(dir: &Path) {
 fn run(kind: Kind) {
     let root = crate::util::root();
     let seeds = corpus(kind, &root);
-    assert!(seeds.len() > 10, "the corpus of {kind:?} is empty");
+    assert!(seeds.len() >= 8, "the corpus of {kind:?} is empty");
     let tmp = tempfile::tempdir().unwrap();
-    if kind == Kind::Nrrd {
-        copy_fixtures(tmp.path());
+    if let Some(folder) = kind.fixtures() {
+        copy_fixtures(folder, tmp.path());
     }
     mutate::prepare_dir(tmp.path());
     let seed = seed();
@@ -87,11 +104,11 @@ fn run(kind: Kind) {
     // the panic messages of caught cases are expected noise only on failure
     while start.elapsed() < BUDGET {
         let (name, bytes) = case(kind, &seeds, seed, n);
-        let path = tmp.path().join(&name);
-        std::fs::write(&path, &bytes).unwrap();
+        let path = mutate::place(tmp.path(), &name, &bytes).unwrap();
         let outcome = catch_unwind(AssertUnwindSafe(|| match kind {
             Kind::Nrrd => nrrd_case(&path),
             Kind::Scene => scene_case(&path),
+            Kind::Formats => formats_case(&path),
         }));
         if let Err(e) = outcome {
             let msg = e
@@ -120,6 +137,11 @@ fn run(kind: Kind) {
 #[test]
 fn fuzz_nrrd_files() {
     run(Kind::Nrrd);
+}
+
+#[test]
+fn fuzz_nifti_and_metaimage_files() {
+    run(Kind::Formats);
 }
 
 #[test]

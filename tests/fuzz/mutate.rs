@@ -1,4 +1,4 @@
-//! Seeded mutation of NRRD files and scene files, shared by the short fuzz run in
+//! Seeded mutation of NRRD files, NIfTI and MetaImage files, and scene files, shared by the short fuzz run in
 //! `cargo test` (`tests/fuzz/mod.rs`, in-process, panics caught) and the long run
 //! (`examples/fuzz.rs`, every case its own process under a timeout and a memory
 //! limit). Deterministic: a case is fully defined by (kind, seed, index), so any
@@ -46,6 +46,8 @@ pub enum Kind {
     Nrrd = 1,
     /// Scene files (`volcast check`).
     Scene = 2,
+    /// NIfTI and MetaImage files (`volcast info`).
+    Formats = 3,
 }
 
 impl Kind {
@@ -54,6 +56,17 @@ impl Kind {
         match self {
             Kind::Nrrd => "nrrd",
             Kind::Scene => "scene",
+            Kind::Formats => "formats",
+        }
+    }
+
+    /// The folder of fixtures a case of this kind may name (data files), copied
+    /// beside the cases.
+    pub fn fixtures(self) -> Option<&'static str> {
+        match self {
+            Kind::Nrrd => Some("tests/fixtures/nrrd"),
+            Kind::Formats => Some("tests/fixtures/formats"),
+            Kind::Scene => None,
         }
     }
 }
@@ -105,6 +118,73 @@ pub const NRRD_LINES: &[&str] = &[
     "# comment",
     "",
 ];
+
+/// MetaImage header lines worth splicing in: hostile sizes, special data files,
+/// every compression and byte order, degenerate geometry.
+pub const META_LINES: &[&str] = &[
+    "DimSize = 4000000000 4000000000 4000000000",
+    "DimSize = 1100 1100 1100",
+    "DimSize = 0 1 1",
+    "NDims = 4",
+    "NDims = 1",
+    "ElementType = MET_DOUBLE",
+    "ElementType = MET_UCHAR_ARRAY",
+    "ElementNumberOfChannels = 3",
+    "CompressedData = True",
+    "CompressedData = False",
+    "CompressedDataSize = 18446744073709551615",
+    "CompressedDataSize = 1",
+    "HeaderSize = -1",
+    "HeaderSize = 9223372036854775807",
+    "BinaryDataByteOrderMSB = True",
+    "BinaryData = False",
+    "ElementSpacing = 1e308 1e-308 nan",
+    "TransformMatrix = 0 0 0 0 0 0 0 0 0",
+    "Offset = 1e308 -1e308 0",
+    "ElementDataFile = /dev/zero",
+    "ElementDataFile = fifo",
+    "ElementDataFile = .",
+    "ElementDataFile = LIST",
+    "ElementDataFile = i16.raw",
+    "ElementDataFile = LOCAL",
+    "ObjectType = Mesh",
+    "",
+];
+
+/// NIfTI-1 header fields (byte offset, little-endian bytes) worth overwriting:
+/// hostile dimensions, types, offsets, transforms.
+const NIFTI_FIELDS: &[(usize, &[u8])] = &[
+    (40, &[4, 0]),                 // dim[0] = 4
+    (40, &[8, 0]),                 // dim[0] = 8
+    (42, &[0xff, 0x7f]),           // dim[1] = 32767
+    (44, &[0xff, 0x7f]),           // dim[2] = 32767
+    (46, &[0, 0x80]),              // dim[3] = -32768
+    (48, &[0xff, 0x7f]),           // dim[4] = 32767
+    (70, &[128, 0]),               // datatype RGB24
+    (70, &[64, 0]),                // datatype float64
+    (72, &[64, 0]),                // bitpix 64
+    (108, &[0, 0, 0x80, 0x7f]),    // vox_offset = inf
+    (108, &[0, 0, 0xc0, 0x7f]),    // vox_offset = nan
+    (108, &[0, 0, 0x80, 0x4f]),    // vox_offset = 4.3e9
+    (112, &[0, 0, 0, 0x80]),       // scl_slope = -0
+    (112, &[0, 0, 0xc0, 0x7f]),    // scl_slope = nan
+    (252, &[1, 0]),                // qform_code 1
+    (254, &[0, 0]),                // sform_code 0
+    (256, &[0, 0, 0x80, 0x7f]),    // quatern_b = inf
+    (280, &[0, 0, 0, 0]),          // srow_x[0] = 0
+    (0, &[0x1c, 2, 0, 0]),         // sizeof_hdr 540
+    (344, &[b'n', b'i', b'1', 0]), // magic of a pair
+];
+
+/// One to three NIfTI header fields overwritten with hostile values.
+fn mutate_nifti_fields(rng: &mut Rng, b: &mut [u8]) {
+    for _ in 0..1 + rng.below(3) {
+        let (at, bytes) = *rng.pick(NIFTI_FIELDS);
+        if let Some(dst) = b.get_mut(at..at + bytes.len()) {
+            dst.copy_from_slice(bytes);
+        }
+    }
+}
 
 /// Lines and tables worth splicing into scene files: huge requests, every mode and
 /// option, bad types, deep nesting.
@@ -318,7 +398,26 @@ pub fn mutate_kind(rng: &mut Rng, input: &[u8], kind: Kind) -> Vec<u8> {
     let dict = match kind {
         Kind::Nrrd => NRRD_LINES,
         Kind::Scene => SCENE_LINES,
+        Kind::Formats => META_LINES,
     };
+    if kind == Kind::Formats && input.starts_with(&[0x1f, 0x8b]) && rng.below(2) == 0 {
+        // a .nii.gz: mutate what it holds, compressed again
+        use std::io::{Read, Write};
+        let mut raw = Vec::new();
+        let _ = flate2::read::MultiGzDecoder::new(input).read_to_end(&mut raw);
+        let inner = mutate_kind(rng, &raw, kind);
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        let _ = e.write_all(&inner);
+        return e.finish().unwrap_or_default();
+    }
+    if kind == Kind::Formats && input.starts_with(&348i32.to_le_bytes()) && rng.below(2) == 0 {
+        let mut b = input.to_vec();
+        mutate_nifti_fields(rng, &mut b);
+        if rng.below(2) == 0 {
+            return mutate(rng, &b, dict);
+        }
+        return b;
+    }
     let mut b = mutate(rng, input, dict);
     if kind == Kind::Nrrd && rng.below(200) == 0 {
         bulk_pairs(rng, &mut b);
@@ -378,6 +477,17 @@ pub fn corpus(kind: Kind, root: &Path) -> Vec<Seed> {
             ));
             seeds.extend(read_dir(root.join("tests/bad/nrrd"), &["nrrd", "nhdr"]));
         }
+        Kind::Formats => {
+            seeds.extend(read_dir(
+                root.join("tests/fixtures/formats"),
+                &["nii", "gz", "mha", "mhd"],
+            ));
+            // DICOM slices: a case is one slice in a folder of its own (see `place`)
+            seeds.extend(read_dir(
+                root.join("tests/fixtures/formats/dicom_ct"),
+                &["dcm"],
+            ));
+        }
         Kind::Scene => {
             let data = root.join("data");
             for mut s in read_dir(root.join("scenes"), &["toml"]) {
@@ -404,12 +514,25 @@ pub fn corpus(kind: Kind, root: &Path) -> Vec<Seed> {
     seeds
 }
 
+/// Writes case `bytes` as `name` in `dir` and returns what volcast is given: the file,
+/// or for a DICOM slice (`.dcm`) the folder `case_dicom` holding it alone.
+pub fn place(dir: &Path, name: &str, bytes: &[u8]) -> std::io::Result<PathBuf> {
+    if name.ends_with(".dcm") {
+        let folder = dir.join("case_dicom");
+        std::fs::create_dir_all(&folder)?;
+        std::fs::write(folder.join(name), bytes)?;
+        return Ok(folder);
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, bytes)?;
+    Ok(path)
+}
+
 /// Case `index` of `kind` under `seed`: the file name to write it as, and its bytes.
 pub fn case(kind: Kind, seeds: &[Seed], seed: u64, index: u64) -> (String, Vec<u8>) {
     let mut rng = Rng::for_case(kind, seed, index);
     let s = rng.pick(seeds);
-    let ext = Path::new(&s.name)
-        .extension()
-        .map_or(String::new(), |e| e.to_string_lossy().into_owned());
+    // everything after the first dot: `nii.gz` stays a compressed NIfTI
+    let ext = s.name.split_once('.').map_or("", |(_, e)| e);
     (format!("case.{ext}"), mutate_kind(&mut rng, &s.bytes, kind))
 }

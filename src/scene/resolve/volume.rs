@@ -1,6 +1,30 @@
-//! `[volume]`: a NRRD file, a raw file or a synthetic field, its window and crop.
+//! `[volume]`: a volume file (NRRD, NIfTI, MetaImage), a DICOM folder, a raw file or a
+//! synthetic field, its window and crop.
 
 use super::*;
+use crate::volume::dicom::DicomSpec;
+use crate::volume::nifti::NiftiSpec;
+use crate::volume::FileFormat;
+
+/// The format of a volume file, from `format` or the file's name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Format {
+    Nrrd,
+    Nifti,
+    MetaImage,
+    Dicom,
+    Raw,
+}
+
+impl From<FileFormat> for Format {
+    fn from(f: FileFormat) -> Format {
+        match f {
+            FileFormat::Nrrd => Format::Nrrd,
+            FileFormat::Nifti => Format::Nifti,
+            FileFormat::MetaImage => Format::MetaImage,
+        }
+    }
+}
 
 impl Resolver<'_> {
     pub(super) fn volume(&mut self, t: &Spanned<VolumeTable>) -> VolumeSpec {
@@ -21,11 +45,23 @@ impl Resolver<'_> {
                 placeholder
             }
             (None, None) => {
-                self.err(t.span(), "[volume] needs `path` (a .nrrd/.nhdr or raw file) or `synthetic` (gaussian, ball, sphere-distance, marschner-lobb, blobs)");
+                self.err(t.span(), "[volume] needs `path` (a .nrrd/.nhdr, .nii/.nii.gz, .mha/.mhd or raw file) or `synthetic` (gaussian, ball, sphere-distance, marschner-lobb, blobs)");
                 placeholder
             }
             (None, Some(s)) => {
                 self.not_for("by synthetic volumes (raw files only)", &raw_keys[2..]);
+                if let Some(i) = &v.index {
+                    self.err(
+                        i.span(),
+                        "`index` is only used by NIfTI files (.nii, .nii.gz)",
+                    );
+                }
+                if let Some(s) = &v.series {
+                    self.err(
+                        s.span(),
+                        "`series` is only used by DICOM folders (format = \"dicom\")",
+                    );
+                }
                 if let Some(f) = &v.format {
                     self.err(f.span(), "`format` is not used by synthetic volumes");
                 }
@@ -245,37 +281,81 @@ impl Resolver<'_> {
             }
         }
         let path = self.base_dir.join(p.get_ref());
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
-        let looks_nrrd = ext == "nrrd" || ext == "nhdr";
         let has_raw_keys = raw_keys.iter().any(|(_, s)| s.is_some());
+        let by_name = match FileFormat::from_path(&path) {
+            Some(f) => Some(f.into()),
+            None if has_raw_keys => Some(Format::Raw),
+            None => None,
+        };
         let format = self.choice(
             "format",
             &v.format,
-            &[("nrrd", Some(true)), ("raw", Some(false))],
-            if looks_nrrd {
-                Some(true)
-            } else if has_raw_keys {
-                Some(false)
-            } else {
-                None
-            },
+            &[
+                ("nrrd", Some(Format::Nrrd)),
+                ("nifti", Some(Format::Nifti)),
+                ("metaimage", Some(Format::MetaImage)),
+                ("dicom", Some(Format::Dicom)),
+                ("raw", Some(Format::Raw)),
+            ],
+            by_name,
         );
+        let index = v.index.as_ref().and_then(|i| {
+            let n = *i.get_ref();
+            if format == Some(Format::Nifti) && !(0..=i64::from(i16::MAX)).contains(&n) {
+                self.err(
+                    i.span(),
+                    format!("index = {n}: expected the number of a volume of the 4D file, from 0"),
+                );
+            }
+            usize::try_from(n).ok()
+        });
+        if format != Some(Format::Nifti) {
+            if let Some(i) = &v.index {
+                self.err(
+                    i.span(),
+                    "`index` is only used by NIfTI files (.nii, .nii.gz): it chooses a volume of a 4D file",
+                );
+            }
+        }
+        if format != Some(Format::Dicom) {
+            if let Some(s) = &v.series {
+                self.err(
+                    s.span(),
+                    "`series` is only used by DICOM folders (format = \"dicom\"): it chooses a series by its SeriesInstanceUID",
+                );
+            }
+        }
         match format {
             None => {
                 self.err(p.span(), format!(
-                    "cannot tell the format of \"{}\": use a .nrrd/.nhdr file, or set format = \"raw\" with sizes and type",
+                    "cannot tell the format of \"{}\": use a .nrrd/.nhdr, .nii/.nii.gz or .mha/.mhd file, or set format = \"raw\" with sizes and type, or format = \"dicom\" for a folder of DICOM slices",
                     p.get_ref()
                 ));
                 None
             }
-            Some(true) => {
+            Some(Format::Nrrd) => {
                 self.not_for("by NRRD files (their header describes the data)", raw_keys);
                 Some(VolumeSource::Nrrd(path))
             }
-            Some(false) => self.raw(v, path, p.span()),
+            Some(Format::Nifti) => {
+                self.not_for("by NIfTI files (their header describes the data)", raw_keys);
+                Some(VolumeSource::Nifti(NiftiSpec { path, index }))
+            }
+            Some(Format::MetaImage) => {
+                self.not_for(
+                    "by MetaImage files (their header describes the data)",
+                    raw_keys,
+                );
+                Some(VolumeSource::MetaImage(path))
+            }
+            Some(Format::Dicom) => {
+                self.not_for("by DICOM series (their files describe the data)", raw_keys);
+                Some(VolumeSource::Dicom(DicomSpec {
+                    dir: path,
+                    series: v.series.as_ref().map(|s| s.get_ref().clone()),
+                }))
+            }
+            Some(Format::Raw) => self.raw(v, path, p.span()),
         }
     }
 

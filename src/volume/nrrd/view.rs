@@ -232,6 +232,7 @@ pub(super) fn volume_header(h: &NrrdHeader, path: &Path) -> Result<VolumeHeader,
         geometry,
         source: path.display().to_string(),
         fields: display_fields(h),
+        rescale: Default::default(),
     })
 }
 
