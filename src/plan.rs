@@ -551,6 +551,13 @@ impl Plan {
             "frames   {}..{} of {} ({path}){shard}",
             self.frames.start, self.frames.end, o.frames,
         );
+        if scene.camera.fit.is_some() {
+            let t = crate::pipeline::fit_threshold(scene);
+            let _ = writeln!(
+                s,
+                "zoom     \"fit\": frames the voxels at or above {t} (normalised) in every frame; computed when the voxels are loaded"
+            );
+        }
         let _ = writeln!(s, "stereo   {}", crate::output::describe_stereo(scene));
         let _ = writeln!(s, "views    {}", self.views.describe(&self.frame_list));
         let _ = writeln!(

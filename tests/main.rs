@@ -12,6 +12,7 @@ mod confine;
 mod depth_cue;
 mod determinism;
 mod exit_codes;
+mod fit;
 mod formats;
 mod fuzz;
 mod geometry;

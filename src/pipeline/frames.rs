@@ -16,6 +16,32 @@ pub(super) fn render_passes(
         prepare,
         sink,
     } = *emit;
+    // zoom = "fit": the zoom comes from the voxels, before anything is written
+    let (fitted_scene, fitted_plan, fit_note);
+    let (scene, plan) = if scene.camera.fit.is_some() {
+        let t = super::fit::threshold(scene);
+        let Some(z) = super::fit::zoom(scene, plan, volume, norm) else {
+            return Err(Error::Plan {
+                scene: scene.path.clone(),
+                message: format!(
+                    "[camera] zoom = \"fit\": no voxel of {} is at or above the fit threshold {t} (normalised): set `fit_threshold` lower, or give `zoom` a number",
+                    volume.header.source
+                ),
+            });
+        };
+        let mut s = scene.clone();
+        s.camera.zoom = z;
+        let mut p = plan.clone();
+        p.views = crate::views::Views::new(&s, plan.views.share);
+        fit_note = Some(format!(
+            "zoom = \"fit\": {z:.4}, framing the voxels at or above {t:.4} (normalised)"
+        ));
+        (fitted_scene, fitted_plan) = (s, p);
+        (&fitted_scene, &fitted_plan)
+    } else {
+        fit_note = None;
+        (scene, plan)
+    };
     let header = &volume.header;
     let index_from_world =
         header
@@ -196,6 +222,7 @@ pub(super) fn render_passes(
         samples,
         nominal_samples: nominal,
         windows,
+        notes: fit_note.into_iter().collect(),
         ..Summary::default()
     })
 }

@@ -13,11 +13,13 @@
 //! shard or resumed run gives the same bytes as a full run, with any number of
 //! threads.
 
+mod fit;
 mod frames;
 mod prepare;
 mod resume;
 mod write;
 
+pub use fit::threshold as fit_threshold;
 pub use prepare::value_window;
 pub use resume::completed_images;
 
@@ -235,10 +237,12 @@ fn render_run(
             prepare: &prepare,
             sink: &sink,
         };
-        let s = render_passes(scene, &plan, &volume, norm, &jobs, &emit)?;
+        let mut s = render_passes(scene, &plan, &volume, norm, &jobs, &emit)?;
+        let mut notes = std::mem::take(&mut summary.notes);
+        notes.append(&mut s.notes);
         summary = Summary {
             skipped: summary.skipped,
-            notes: std::mem::take(&mut summary.notes),
+            notes,
             ..s
         };
     }

@@ -200,6 +200,7 @@ mod tests {
             elevation_deg: 0.0,
             up: DVec3::Z,
             zoom: 1.0,
+            fit: None,
             distance: None,
             target: None,
         }

@@ -79,9 +79,18 @@ pub struct CameraTable {
     pub azimuth: Sp<f64>,
     pub elevation: Sp<f64>,
     pub up: Sp<[f64; 3]>,
-    pub zoom: Sp<f64>,
+    pub zoom: Sp<ZoomValue>,
+    pub fit_threshold: Sp<f64>,
     pub distance: Sp<f64>,
     pub target: Sp<[f64; 3]>,
+}
+
+/// `zoom = 1.5` or `zoom = "fit"`.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub enum ZoomValue {
+    Number(f64),
+    Word(String),
 }
 
 #[derive(Debug, Deserialize)]

@@ -43,6 +43,14 @@ impl Transfer1D {
         self.interpolation
     }
 
+    /// The smallest value (to 1/4096) with a non-zero opacity, if any: where the
+    /// transfer function starts to show something.
+    pub fn first_opaque(&self) -> Option<f64> {
+        (0..=4096u32)
+            .map(|i| f64::from(i) / 4096.0)
+            .find(|&v| self.alpha.eval(v as f32)[0] > 0.0)
+    }
+
     /// The largest opacity anywhere (the largest alpha knot: neither interpolation exceeds its
     /// knots); 0 means the transfer function is entirely transparent.
     pub fn max_alpha(&self) -> f32 {

@@ -83,6 +83,15 @@ pub struct Transfer2D {
 }
 
 impl Transfer2D {
+    /// The smallest value any widget with a non-zero alpha starts at.
+    pub fn first_opaque(&self) -> Option<f64> {
+        self.widgets
+            .iter()
+            .filter(|w| w.alpha > 0.0)
+            .map(|w| f64::from(w.value[0]))
+            .reduce(f64::min)
+    }
+
     /// A 2D transfer function over values in [0, 1] and gradient magnitudes in
     /// `[0, gradient_max]`.
     ///

@@ -16,6 +16,7 @@ impl Resolver<'_> {
         orbit: &mut Orbit,
         passes: &[RenderPass],
         clips: &[Clip],
+        camera_fit: bool,
     ) -> Option<Keyframes> {
         let ot = orbit_table.map(|t| t.get_ref());
         let smooth = self.choice(
@@ -110,6 +111,9 @@ impl Resolver<'_> {
                         );
                     }
                 }
+            }
+            if let (Some(z), true) = (&v.zoom, camera_fit) {
+                self.err(z.span(), "[[keyframe]] zoom cannot be combined with [camera] zoom = \"fit\" (one zoom for the whole sequence): remove one of them");
             }
             if let Some(tg) = &v.target {
                 if let Some(p) = self.vec3("[[keyframe]] target", tg, false) {

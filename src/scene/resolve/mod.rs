@@ -86,6 +86,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         &mut orbit,
         &passes,
         &clips,
+        camera.fit.is_some(),
     );
     // "needs `key`" adds nothing when `key` was given but of the wrong type
     diags.extend(r.diags.into_iter().filter(|d| {

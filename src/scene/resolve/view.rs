@@ -15,6 +15,7 @@ impl Resolver<'_> {
             elevation_deg: 0.0,
             up: DVec3::Z,
             zoom: 1.0,
+            fit: None,
             distance: None,
             target: None,
         };
@@ -69,7 +70,28 @@ impl Resolver<'_> {
                 .vec3("up", up, true)
                 .map_or(DVec3::Z, |u| u.normalize());
         }
-        cam.zoom = self.number("zoom", &c.zoom, 1.0, |x| x > 0.0, "a positive number");
+        match c.zoom.as_ref().map(|z| (z.get_ref(), z.span())) {
+            None => {}
+            Some((ZoomValue::Number(x), _)) if x.is_finite() && *x > 0.0 => cam.zoom = *x,
+            Some((ZoomValue::Word(w), _)) if w == "fit" => {
+                cam.fit = Some(ZoomFit {
+                    threshold: c
+                        .fit_threshold
+                        .as_ref()
+                        .and_then(|f| self.value_at("fit_threshold", *f.get_ref(), f.span())),
+                });
+            }
+            Some((z, span)) => {
+                let got = match z {
+                    ZoomValue::Number(x) => x.to_string(),
+                    ZoomValue::Word(w) => format!("\"{w}\""),
+                };
+                self.err(span, format!("zoom = {got}: expected a positive magnification, or \"fit\" (the zoom that frames the voxels at or above `fit_threshold`)"));
+            }
+        }
+        if let (Some(f), None) = (&c.fit_threshold, cam.fit) {
+            self.err(f.span(), "`fit_threshold` is used with zoom = \"fit\"");
+        }
         cam.distance = c.distance.as_ref().map(|_| {
             self.number(
                 "distance",

@@ -1,0 +1,119 @@
+//! `[camera] zoom = "fit"`: one zoom for the whole sequence, computed from the voxels
+//! once they are loaded. The box of the voxels at or above the fit threshold (voxel
+//! centres, inside the crop) is projected into every view of the sequence (every
+//! frame and eye, at zoom 1): each view could be magnified until the box's corners
+//! reach its image's edges, and the zoom is the smallest of these, less a margin of
+//! 4 % per side, so the object is as large as it can be while every frame shows it
+//! whole.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::plan::Plan;
+use crate::sample::Normalize;
+use crate::scene::{Mode, Projection, Scene, Transfer};
+
+use crate::volume::Volume;
+
+/// The fit threshold of `scene` (normalised): `fit_threshold`, else the smallest
+/// value any pass looks for (a threshold, an iso value, the first knot or widget
+/// with opacity, the low end of a grey window), else 0 (every voxel above the
+/// window's low end).
+pub fn threshold(scene: &Scene) -> f64 {
+    if let Some(t) = scene.camera.fit.and_then(|f| f.threshold) {
+        return t;
+    }
+    let mut t = f64::INFINITY;
+    for p in &scene.passes {
+        let v = match &p.mode {
+            Mode::Lmip { threshold } | Mode::Depth { threshold } => Some(*threshold),
+            Mode::Surface { iso, .. } => Some(*iso),
+            Mode::Composite { transfer, .. } => match transfer {
+                Transfer::OneD(tf) => tf.first_opaque(),
+                Transfer::TwoD(tf) => tf.first_opaque(),
+            },
+            Mode::Mip { .. } | Mode::Minip | Mode::Average => p.window.map(|w| w[0]),
+            Mode::Xray { .. } => None,
+        };
+        if let Some(v) = v {
+            t = t.min(v);
+        }
+    }
+    if t.is_finite() {
+        t.max(0.0)
+    } else {
+        0.0
+    }
+}
+
+/// The zoom of `zoom = "fit"`, or `None` when no voxel reaches the threshold (or
+/// the scene does not ask for a fit).
+pub fn zoom(scene: &Scene, plan: &Plan, volume: &Volume, norm: Normalize) -> Option<f64> {
+    scene.camera.fit?;
+    let t = threshold(scene);
+    let [nx, ny, nz] = volume.header.sizes;
+    let crop = scene
+        .volume
+        .crop
+        .unwrap_or([[0, nx - 1], [0, ny - 1], [0, nz - 1]]);
+    // voxels at zero threshold: strictly above the window's low end
+    let hit = |v: f32| if t > 0.0 { f64::from(v) >= t } else { v > 0.0 };
+    let boxes = (crop[2][0]..=crop[2][1])
+        .into_par_iter()
+        .filter_map(|k| {
+            let mut b: Option<[[usize; 2]; 3]> = None;
+            for j in crop[1][0]..=crop[1][1] {
+                for i in crop[0][0]..=crop[0][1] {
+                    if hit(norm.apply(volume.value(i, j, k))) {
+                        let e = b.get_or_insert([[i, i], [j, j], [k, k]]);
+                        for (a, x) in [i, j, k].into_iter().enumerate() {
+                            e[a] = [e[a][0].min(x), e[a][1].max(x)];
+                        }
+                    }
+                }
+            }
+            b
+        })
+        .reduce_with(|a, b| {
+            std::array::from_fn(|x| [a[x][0].min(b[x][0]), a[x][1].max(b[x][1])])
+        })?;
+    let corners = volume.header.geometry.box_corners(
+        DVec3::from_array(boxes.map(|r| r[0] as f64)),
+        DVec3::from_array(boxes.map(|r| r[1] as f64)),
+    );
+    // every view of the sequence at zoom 1: how much larger it could be
+    let views = &plan.views;
+    let mut zoom = f64::INFINITY;
+    for k in 0..scene.orbit.frames {
+        for &e in views.eyes() {
+            let v = views.view(
+                &scene.camera,
+                views.key(k, e),
+                plan.width,
+                plan.height,
+                plan.sphere,
+            );
+            let (mut x, mut y) = (0.0f64, 0.0f64);
+            for c in &corners {
+                let d = *c - v.eye;
+                let (dx, dy) = (d.dot(v.right), d.dot(v.up));
+                let (dx, dy) = match v.projection {
+                    Projection::Orthographic => (dx, dy),
+                    Projection::Perspective => {
+                        // a corner behind (or at) the eye cannot be framed by zooming
+                        let depth = d.dot(v.forward).max(1e-9 * v.distance);
+                        (dx / depth, dy / depth)
+                    }
+                };
+                x = x.max(dx.abs());
+                y = y.max(dy.abs());
+            }
+            let fits = (v.half_width / x.max(1e-12)).min(v.half_height / y.max(1e-12));
+            zoom = zoom.min(fits);
+        }
+    }
+    Some(zoom / MARGIN)
+}
+
+/// Room left around the framed box: 4 % of the image on each side.
+const MARGIN: f64 = 1.08;
