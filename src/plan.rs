@@ -601,6 +601,17 @@ impl Plan {
                     needs.push(format!("grey window [{lo}, {hi}]"));
                 }
             }
+            if let (Some(map), true) = (p.colormap, scene.image.format != Format::Nrrd) {
+                needs.push(format!(
+                    "colour map {}: the windowed grey level {} (PNG in RGB; rays without a value show the background)",
+                    map.name(),
+                    if rp.kind() == ImageKind::Depth {
+                        "(near bright) through it"
+                    } else {
+                        "through it"
+                    }
+                ));
+            }
             if needs.is_empty() {
                 needs.push("nothing precomputed".into());
             }

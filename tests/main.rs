@@ -8,6 +8,7 @@ mod bad_input;
 mod batch;
 mod cli;
 mod clip;
+mod colormap;
 mod confine;
 mod depth_cue;
 mod determinism;

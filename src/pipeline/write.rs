@@ -14,8 +14,8 @@ pub(super) fn write_frame(
     let format = scene.image.format;
     let bg = scene.image.background;
     let display_kind = match (plan.passes[p].kind(), window) {
-        (ImageKind::Depth, Some(w)) => DisplayKind::Depth(w),
-        (_, Some(w)) => DisplayKind::Intensity(w),
+        (ImageKind::Depth, Some(w)) => DisplayKind::Depth(w, pass.colormap),
+        (_, Some(w)) => DisplayKind::Intensity(w, pass.colormap),
         _ => DisplayKind::Rgba,
     };
     // Films in the form the format stores: raw values for NRRD, display colours for PNG.

@@ -452,6 +452,10 @@ pub struct RenderPass {
     pub integration: Integration,
     /// Jitter each ray's first sample by a per-pixel fraction of the step.
     pub jitter: bool,
+    /// The colour map of an intensity pass's PNG output (`colormap`): the windowed
+    /// value goes through it instead of showing as grey. `None` = grey; a depth-coded
+    /// MIP keeps its map in [`MipOutput::DepthCoded`] and has `None` here.
+    pub colormap: Option<crate::transfer::Colormap>,
 }
 
 /// One `[[clip]]` plane: removes the half-space its normal points into.

@@ -8,6 +8,7 @@
 //! and compositing".
 
 mod colormap;
+mod colormap_tables;
 mod curve;
 mod one_d;
 mod preintegrated;

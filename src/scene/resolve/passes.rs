@@ -7,7 +7,10 @@ const MODE_KEYS: &[(&str, &[&str])] = &[
     ("output", &["xray", "mip"]),
     ("mu", &["xray"]),
     ("depth_cue", &["mip"]),
-    ("colormap", &["mip"]),
+    (
+        "colormap",
+        &["xray", "mip", "minip", "average", "lmip", "depth"],
+    ),
     ("threshold", &["lmip", "depth"]),
     ("iso", &["surface"]),
     ("material", &["surface", "composite"]),
@@ -52,6 +55,7 @@ impl Resolver<'_> {
                 window: None,
                 integration: Integration::Sampled,
                 jitter: false,
+                colormap: None,
             }];
         };
         if tables.is_empty() {
@@ -177,6 +181,12 @@ impl Resolver<'_> {
             Some([lo, hi])
         });
         self.check_method(v, integration, interpolation, jitter);
+        let map = self.choice(
+            "colormap",
+            &v.colormap,
+            crate::transfer::Colormap::ALL,
+            crate::transfer::Colormap::Turbo,
+        );
         let mode = match mode_name {
             "xray" => Mode::Xray {
                 output: self.choice(
@@ -191,7 +201,7 @@ impl Resolver<'_> {
                 ),
                 mu: self.number("mu", &v.mu, 1.0, |x| x >= 0.0, "an attenuation scale >= 0"),
             },
-            "mip" => self.mip(v),
+            "mip" => self.mip(v, map),
             "minip" => Mode::Minip,
             "average" => Mode::Average,
             "lmip" => Mode::Lmip {
@@ -284,6 +294,16 @@ impl Resolver<'_> {
                 ));
             }
         }
+        // a depth-coded MIP's map colours the depth; every other intensity pass's
+        // colours its windowed value
+        let depth_coded = matches!(
+            mode,
+            Mode::Mip {
+                output: MipOutput::DepthCoded(_),
+                ..
+            }
+        );
+        let colormap = (v.colormap.is_some() && !depth_coded).then_some(map);
         Some(RenderPass {
             name,
             mode,
@@ -292,11 +312,12 @@ impl Resolver<'_> {
             window,
             integration,
             jitter,
+            colormap,
         })
     }
 
-    /// A MIP pass's depth cue and output.
-    fn mip(&mut self, v: &RenderTable) -> Mode {
+    /// A MIP pass's depth cue and output; `map` colours the depth of a depth-coded one.
+    fn mip(&mut self, v: &RenderTable, map: crate::transfer::Colormap) -> Mode {
         let depth_cue = self.number(
             "depth_cue",
             &v.depth_cue,
@@ -320,23 +341,11 @@ impl Resolver<'_> {
             ],
             Out::Value,
         );
-        let map = self.choice(
-            "colormap",
-            &v.colormap,
-            crate::transfer::Colormap::ALL,
-            crate::transfer::Colormap::Turbo,
-        );
         let output = match out {
             Out::Value => MipOutput::Value,
             Out::DepthOfMax => MipOutput::DepthOfMax,
             Out::DepthCoded => MipOutput::DepthCoded(map),
         };
-        if let (Some(c), false) = (&v.colormap, matches!(out, Out::DepthCoded)) {
-            self.err(
-                c.span(),
-                "`colormap` colours the depth of the maximum: it needs output = \"depth-coded\"",
-            );
-        }
         Mode::Mip { depth_cue, output }
     }
 
