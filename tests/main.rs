@@ -20,6 +20,7 @@ mod mapping;
 mod memory;
 mod nrrd;
 mod output_folder;
+mod presets;
 mod resume_trust;
 mod skipping;
 mod special_files;

@@ -35,6 +35,9 @@ struct Resolver<'a> {
     base_dir: &'a Path,
     /// `[volume] units`, once the volume is resolved.
     units: Units,
+    /// `[volume] window` (or a synthetic field's default), once the volume is
+    /// resolved: what places the data-unit knots of transfer-function presets.
+    window: Option<[f64; 2]>,
 }
 
 pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
@@ -53,6 +56,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         warnings: Vec::new(),
         base_dir,
         units: Units::Normalised,
+        window: None,
     };
     let name = path
         .file_stem()

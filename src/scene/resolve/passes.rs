@@ -235,16 +235,10 @@ impl Resolver<'_> {
                     .transfer
                     .as_ref()
                     .map_or("grey".to_string(), |t| t.get_ref().clone());
-                let Some(transfer) = transfers.get(&transfer_name).cloned() else {
-                    let span = v.transfer.as_ref().map_or(t.span(), |s| s.span());
-                    let hint = suggest(&transfer_name, transfers.keys().map(|s| s.as_str()))
-                        .map(|n| format!("; did you mean `{n}`?"))
-                        .unwrap_or_default();
-                    self.err(span, format!(
-                        "transfer = \"{transfer_name}\" is not defined: add a [transfer.{transfer_name}] table, or use one of {}{hint}",
-                        quoted_list(transfers.keys().map(|s| s.as_str()))
-                    ));
-                    return None;
+                let span = v.transfer.as_ref().map_or(t.span(), |s| s.span());
+                let transfer = match transfers.get(&transfer_name) {
+                    Some(tf) => tf.clone(),
+                    None => self.preset(&transfer_name, transfers, span)?,
                 };
                 let preintegrated = v.preintegrated.as_ref().is_some_and(|p| *p.get_ref());
                 if let (true, Transfer::TwoD(_), Some(p)) =
@@ -347,6 +341,48 @@ impl Resolver<'_> {
             Out::DepthCoded => MipOutput::DepthCoded(map),
         };
         Mode::Mip { depth_cue, output }
+    }
+
+    /// The transfer-function preset `name` placed on the volume's window, or an error
+    /// at `span` (not a preset, or no window to place its data values with).
+    fn preset(
+        &mut self,
+        name: &str,
+        transfers: &BTreeMap<String, Transfer>,
+        span: Range<usize>,
+    ) -> Option<Transfer> {
+        let Some(preset) = transfer::Preset::find(name) else {
+            let names: Vec<&str> = transfers
+                .keys()
+                .map(|s| s.as_str())
+                .chain(transfer::PRESETS.iter().map(|p| p.name))
+                .collect();
+            let hint = suggest(name, names.iter().copied())
+                .map(|n| format!("; did you mean `{n}`?"))
+                .unwrap_or_default();
+            self.err(span, format!(
+                "transfer = \"{name}\" is not defined: add a [transfer.{name}] table, or use one of {}{hint}",
+                quoted_list(names.iter().copied())
+            ));
+            return None;
+        };
+        let Some([lo, hi]) = self.window else {
+            self.err(span, format!(
+                "transfer = \"{name}\" is a preset with knots in data values (Slicer's {}): it needs `window = [lo, hi]` in [volume], the data values its knots are placed on (for CT in Hounsfield units, e.g. window = [-1024, 3071])",
+                preset.slicer
+            ));
+            return None;
+        };
+        match preset.transfer(lo, hi) {
+            Ok(tf) => Some(Transfer::OneD(Arc::new(tf))),
+            Err(e) => {
+                self.err(
+                    span,
+                    format!("transfer = \"{name}\" on the window [{lo}, {hi}]: {e}"),
+                );
+                None
+            }
+        }
     }
 
     /// Combinations of integration, interpolation and jitter that do not work.

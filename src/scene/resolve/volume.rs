@@ -70,6 +70,7 @@ impl Resolver<'_> {
             }
         };
         self.units = units;
+        self.window = window;
         VolumeSpec {
             source,
             window,
