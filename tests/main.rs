@@ -20,6 +20,7 @@ mod mapping;
 mod memory;
 mod nrrd;
 mod output_folder;
+mod overlay;
 mod presets;
 mod resume_trust;
 mod skipping;

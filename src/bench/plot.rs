@@ -12,8 +12,7 @@ use plotters::prelude::*;
 
 use super::{BenchError, Report, Row};
 
-/// DejaVu Sans (Bitstream Vera licence, `assets/fonts/DejaVuSans.LICENSE`).
-static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+use crate::output::overlay::FONT;
 
 const WIDTH: u32 = 1600;
 const HEIGHT: u32 = 900;

@@ -44,6 +44,8 @@ pub struct Scene {
     pub light: LightSpec,
     /// Clipping planes (`[[clip]]`), in file order.
     pub clips: Vec<Clip>,
+    /// Text drawn into PNG frames (`[[label]]`), in file order.
+    pub labels: Vec<crate::output::overlay::Label>,
     /// Animated files to assemble from each pass's frames, when requested.
     pub animation: Option<Animation>,
     /// Write `{out}/index.html`, a turntable page for the browser, once every frame
@@ -280,6 +282,10 @@ pub struct ImageSpec {
     pub format: Format,
     /// Output folder, with `{scene}` already substituted (relative to the working directory).
     pub out: PathBuf,
+    /// Draw a scale bar into PNG frames (orthographic views only).
+    pub scale_bar: bool,
+    /// Draw a colour bar of the window into the PNG frames of intensity passes.
+    pub colorbar: bool,
 }
 
 /// What an X-ray pass stores.

@@ -7,6 +7,7 @@
 
 mod appearance;
 mod clip;
+mod labels;
 mod passes;
 mod view;
 mod volume;
@@ -65,7 +66,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let volume = r.volume(&file.volume);
     let camera = r.camera(file.camera.as_ref());
     let orbit = r.orbit(file.orbit.as_ref());
-    let image = r.image(file.image.as_ref(), &name);
+    let image = r.image(file.image.as_ref(), &name, camera.projection);
     let stereo = file
         .stereo
         .as_ref()
@@ -83,6 +84,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let transfers = r.transfers(&file.transfer);
     let passes = r.passes(file.render.as_deref(), &materials, &transfers);
     let clips = r.clips(file.clip.as_deref(), &passes);
+    let labels = r.labels(file.label.as_deref(), &image, &passes);
     // "needs `key`" adds nothing when `key` was given but of the wrong type
     diags.extend(r.diags.into_iter().filter(|d| {
         !(d.message.contains("needs")
@@ -105,6 +107,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         passes,
         light,
         clips,
+        labels,
         animation,
         viewer,
         text: text.to_string(),
