@@ -8,7 +8,7 @@ VOLCAST=${1:-target/release/volcast}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 render() { "$VOLCAST" render --quiet --frames 0 --size 256x256 --out "$tmp/$1" "scenes/$1.toml"; }
-for s in xray_engine mip_head head_modes minip_ventricles depth_engine golden_engine golden_head golden_skull composite_engine_bone transfer_2d marschner_lobb; do
+for s in xray_engine mip_head head_modes minip_ventricles depth_engine golden_engine golden_head golden_skull composite_engine_bone transfer_2d marschner_lobb colormap_engine preset_mr_head; do
   render "$s"
 done
 cp "$tmp/xray_engine/xray_0000.png"                docs/images/xray.png
@@ -25,6 +25,13 @@ cp "$tmp/composite_engine_bone/bone_0000.png"      docs/images/composite.png
 cp "$tmp/transfer_2d/composite_0000.png"           docs/images/composite_2d.png
 cp "$tmp/marschner_lobb/trilinear_0000.png"        docs/images/ml_trilinear.png
 cp "$tmp/marschner_lobb/cubic_0000.png"            docs/images/ml_cubic.png
+cp "$tmp/colormap_engine/mip_hot_0000.png"         docs/images/colormap_hot.png
+cp "$tmp/colormap_engine/xray_bone_0000.png"       docs/images/colormap_bone.png
+cp "$tmp/colormap_engine/depth_viridis_0000.png"   docs/images/colormap_viridis.png
+cp "$tmp/preset_mr_head/mr_default_0000.png"       docs/images/preset_mr_default.png
+# the overlays at a larger size (frame 3)
+"$VOLCAST" render --quiet --frames 3 --size 384x384 --out "$tmp/overlays" scenes/colormap_engine.toml
+cp "$tmp/overlays/depth_viridis_0003.png"          docs/images/overlays.png
 # the turntable page of the golden skull (all 36 frames), photographed in headless
 # Chromium by the browser test's tooling (needs chromium and chromedriver)
 "$VOLCAST" render --quiet --size 256x256 --viewer --out "$tmp/skull_viewer" scenes/golden_skull.toml

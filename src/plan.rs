@@ -83,6 +83,9 @@ pub struct Plan {
     /// Whether the run writes the turntable page `{out}/index.html` once every frame
     /// exists (`[viewer] html` or `--viewer`).
     pub viewer: bool,
+    /// The volume's length unit (`space units` or `units` of its file, when every
+    /// axis has the same one), for the scale bar.
+    pub length_unit: Option<String>,
     /// One render pass per scene pass, in order.
     pub passes: Vec<RenderPass>,
     /// The passes as the frames render them: [`Plan::passes`] itself, unless
@@ -389,6 +392,7 @@ impl Plan {
             height,
             out,
             viewer,
+            length_unit: length_unit(header),
             passes,
             variants,
             variant_of,
@@ -654,6 +658,17 @@ impl Plan {
                     needs.push(format!("grey window [{lo}, {hi}]"));
                 }
             }
+            if let (Some(map), true) = (p.colormap, scene.image.format != Format::Nrrd) {
+                needs.push(format!(
+                    "colour map {}: the windowed grey level {} (PNG in RGB; rays without a value show the background)",
+                    map.name(),
+                    if rp.kind() == ImageKind::Depth {
+                        "(near bright) through it"
+                    } else {
+                        "through it"
+                    }
+                ));
+            }
             if needs.is_empty() {
                 needs.push("nothing precomputed".into());
             }
@@ -847,4 +862,15 @@ fn shade_light(scene: &Scene, centre: glam::DVec3) -> Light {
         color: l.color.as_vec3(),
         intensity: l.intensity.unwrap_or(default_intensity) as f32,
     }
+}
+
+/// The one length unit of every axis of the volume's file (`space units`, else
+/// `units`), if it names one.
+fn length_unit(header: &VolumeHeader) -> Option<String> {
+    ["space units", "units"].iter().find_map(|key| {
+        let (_, v) = header.fields.iter().find(|(k, _)| k == key)?;
+        let mut units = v.split_whitespace();
+        let first = units.next()?;
+        (first != "???" && units.all(|u| u == first)).then(|| first.to_string())
+    })
 }

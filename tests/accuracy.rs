@@ -707,3 +707,19 @@ fn early_termination_bound_holds_for_preintegrated_and_jittered_passes() {
         }
     }
 }
+
+/// Redraws `docs/images/accuracy.png` from the measurements in `docs/accuracy.json`
+/// (after a change to the plot alone, without measuring again):
+/// `cargo test --test integration redraw_the_accuracy_plot -- --ignored`.
+#[test]
+#[ignore = "rewrites docs/images/accuracy.png"]
+fn redraw_the_accuracy_plot() {
+    let root = crate::util::root();
+    let json = std::fs::read_to_string(root.join("docs/accuracy.json")).unwrap();
+    let report: volcast::bench::Report = serde_json::from_str(&json).unwrap();
+    std::fs::write(
+        root.join("docs/images/accuracy.png"),
+        report.plot().unwrap(),
+    )
+    .unwrap();
+}

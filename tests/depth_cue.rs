@@ -9,6 +9,7 @@
 
 use crate::analytic::{gauss_trilinear_bound, pixel_xz, render, GAUSS};
 use crate::assert_close;
+use crate::colormap::{table_at, tables};
 
 const D: f64 = 2.0 * 1.732_050_807_568_877_2;
 
@@ -139,6 +140,7 @@ fn a_cue_darkens_the_far_side_only() {
 
 #[test]
 fn depth_coded_is_the_colour_map_at_the_depth_times_the_value() {
+    let turbo = &tables()["turbo"];
     for integration in ["sampled", "exact"] {
         let v = render(&passes(0.5, integration));
         for j in 0..41 {
@@ -152,14 +154,14 @@ fn depth_coded_is_the_colour_map_at_the_depth_times_the_value() {
                     assert_eq!(coded, &[0.0; 4]);
                     continue;
                 }
-                // the colour map straight from the crate, at s / D
-                let c = colorous::TURBO.eval_continuous((depth / D).clamp(0.0, 1.0));
-                let want = [c.r, c.g, c.b].map(|x| f32::from(x) / 255.0 * value.clamp(0.0, 1.0));
+                // matplotlib's turbo table at s / D
+                let c = table_at(turbo, (depth / D).clamp(0.0, 1.0));
+                let want = c.map(|x| x * f64::from(value.clamp(0.0, 1.0)));
                 for k in 0..3 {
                     assert_close!(
-                        coded[k],
+                        f64::from(coded[k]),
                         want[k],
-                        1e-6,
+                        1e-5,
                         "{integration} channel {k} at ({i},{j})"
                     );
                 }
@@ -177,8 +179,8 @@ fn depth_cue_errors_name_the_key() {
             "depth_cue = 1.5: expected",
         ),
         (
-            "mode = \"mip\"\ncolormap = \"viridis\"\n",
-            "it needs output = \"depth-coded\"",
+            "mode = \"surface\"\ncolormap = \"viridis\"\n",
+            "`colormap` is not used by mode = \"surface\"",
         ),
         (
             "mode = \"mip\"\noutput = \"depth-coded\"\ncolormap = \"virdis\"\n",

@@ -17,7 +17,7 @@ mod truth;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 pub use accuracy::{GRID, STEPS};
 pub use speed::{speed, SpeedOptions, SpeedReport, SpeedRow, MODES};
@@ -87,7 +87,7 @@ impl Options {
 }
 
 /// One rendered configuration and its measured speed and error.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Row {
     /// Analytic field.
     pub field: String,
@@ -117,7 +117,7 @@ pub struct Row {
 }
 
 /// Reconstruction error of one filter on Marschner-Lobb 41^3.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ReconstructionRow {
     /// Reconstruction filter.
     pub interpolation: String,
@@ -132,7 +132,7 @@ pub struct ReconstructionRow {
 }
 
 /// Angular error of one normal estimator on a sphere.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct NormalRow {
     /// Interpolation + gradient estimator.
     pub estimator: String,
@@ -145,7 +145,7 @@ pub struct NormalRow {
 }
 
 /// Everything one run measured.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Report {
     /// The exact command.
     pub command: String,
@@ -248,6 +248,12 @@ impl Report {
             write_file(p, b)?;
         }
         Ok(files.into_iter().map(|(p, _)| p).collect())
+    }
+
+    /// The speed-against-error plot (`images/accuracy.png`) as PNG bytes; a report
+    /// read back from its `accuracy.json` draws the plot of that run.
+    pub fn plot(&self) -> Result<Vec<u8>, BenchError> {
+        plot::speed_vs_error(self)
     }
 
     /// The sweep as CSV (one row per case).

@@ -12,8 +12,7 @@ use plotters::prelude::*;
 
 use super::{BenchError, Report, Row};
 
-/// DejaVu Sans (Bitstream Vera licence, `assets/fonts/DejaVuSans.LICENSE`).
-static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+use crate::output::overlay::FONT;
 
 const WIDTH: u32 = 1600;
 const HEIGHT: u32 = 900;
@@ -62,6 +61,31 @@ fn panel_rows<'a>(r: &'a Report, mode: &str) -> (String, Vec<&'a Row>) {
         None => format!("{mode}, {field}"),
     };
     (title, rows)
+}
+
+/// Tick values of a log axis over `[lo, hi]` (`0 < lo < hi`): the powers of ten
+/// inside it, with 2 and 5 times them when that gives fewer than three, and every
+/// integer multiple when still fewer (a panel whose errors span less than a decade
+/// showed no tick label at all with plotters' own choice, powers of ten only).
+fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let inside = |mantissas: &[f64]| -> Vec<f64> {
+        let (e0, e1) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+        (e0..=e1)
+            .flat_map(|e| mantissas.iter().map(move |m| m * 10f64.powi(e)))
+            .filter(|y| (lo..=hi).contains(y))
+            .collect()
+    };
+    for mantissas in [
+        &[1.0][..],
+        &[1.0, 2.0, 5.0],
+        &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0],
+    ] {
+        let ticks = inside(mantissas);
+        if ticks.len() >= 3 || mantissas.len() == 9 {
+            return ticks;
+        }
+    }
+    unreachable!("the last set of mantissas returns")
 }
 
 /// The legend entry of a row: method, interpolation and gradient estimator.
@@ -121,7 +145,9 @@ pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
                 .y_label_area_size(58)
                 .build_cartesian_2d(
                     (x0 / 1.3..x1 * 1.3).log_scale(),
-                    (y0 / 2.0..y1 * 2.0).log_scale(),
+                    (y0 / 2.0..y1 * 2.0)
+                        .log_scale()
+                        .with_key_points(log_ticks(y0 / 2.0, y1 * 2.0)),
                 )
                 .map_err(plot_err)?;
             chart
@@ -131,7 +157,7 @@ pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
                 .label_style(("sans-serif", 11))
                 .x_labels(5)
                 .y_labels(6)
-                .y_label_formatter(&|y| format!("{y:.0e}"))
+                .y_label_formatter(&|y| format!("{y:.1e}").replace(".0e", "e"))
                 .x_label_formatter(&|x| format!("{x:.2}"))
                 .draw()
                 .map_err(plot_err)?;
@@ -169,4 +195,22 @@ pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
     img.write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
         .map_err(plot_err)?;
     Ok(png)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::log_ticks;
+
+    #[test]
+    fn every_log_axis_gets_tick_labels() {
+        // wide: powers of ten only
+        assert_eq!(log_ticks(5e-5, 2e-2), vec![1e-4, 1e-3, 1e-2]);
+        // the panels that had none: less than a decade (lmip, depth, surface)
+        let t = log_ticks(0.011, 0.045);
+        assert!(t.len() >= 3, "{t:?}");
+        assert!(t.iter().all(|y| (0.011..=0.045).contains(y)), "{t:?}");
+        assert_eq!(log_ticks(0.0015, 0.012), vec![2e-3, 5e-3, 1e-2]);
+        // a factor of 4 (2x either side of one value) still gets two labels
+        assert!(log_ticks(0.0305, 0.122).len() >= 2);
+    }
 }

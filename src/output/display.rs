@@ -1,19 +1,22 @@
 //! Turning film values into displayable colours in [0, 1].
 //!
 //! Intensity modes use one grey window `[lo, hi]` for a whole sequence (so a
-//! turntable does not flicker); depth shows near as bright; pixels without a value
-//! (NaN: the ray missed, or never crossed the threshold) show the background; RGBA
-//! films are composited over the background.
+//! turntable does not flicker); depth shows near as bright; a colour map, when the
+//! pass has one, turns that grey level into a colour; pixels without a value (NaN:
+//! the ray missed, or never crossed the threshold) show the background; RGBA films
+//! are composited over the background.
 
 use crate::render::Film;
+use crate::transfer::Colormap;
 
 /// How film values become grey or colour.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DisplayKind {
-    /// Grey = `(v - lo) / (hi - lo)`.
-    Intensity(Window),
-    /// Grey = `(hi - v) / (hi - lo)`: near is bright.
-    Depth(Window),
+    /// Grey = `(v - lo) / (hi - lo)`, through the colour map when there is one.
+    Intensity(Window, Option<Colormap>),
+    /// Grey = `(hi - v) / (hi - lo)`: near is bright; through the colour map when
+    /// there is one.
+    Depth(Window, Option<Colormap>),
     /// RGBA (not premultiplied) over the background.
     Rgba,
 }
@@ -60,23 +63,30 @@ impl Window {
         }
     }
 
-    fn unit(&self, v: f64) -> f64 {
+    /// `v` on the window's scale, clamped to [0, 1].
+    pub fn unit(&self, v: f64) -> f64 {
         ((v - self.lo) / (self.hi - self.lo)).clamp(0.0, 1.0)
     }
 }
 
 /// Converts a film to display values: 1 channel (grey) where the film is an
-/// intensity film and the background is grey, else 3 (RGB). The new film is
-/// allocated fallibly.
+/// intensity film without a colour map (`grey` counts as none) and the background
+/// is grey, else 3 (RGB). The new film is allocated fallibly.
 pub fn to_display(
     film: &Film,
     kind: DisplayKind,
     background: [f32; 3],
 ) -> Result<Film, super::AllocError> {
     let grey_bg = background[0] == background[1] && background[1] == background[2];
+    let map = match kind {
+        DisplayKind::Intensity(_, m) | DisplayKind::Depth(_, m) => {
+            m.filter(|m| *m != Colormap::Grey)
+        }
+        DisplayKind::Rgba => None,
+    };
     let channels = match kind {
         DisplayKind::Rgba => 3,
-        _ if grey_bg => 1,
+        _ if grey_bg && map.is_none() => 1,
         _ => 3,
     };
     let mut out = super::try_film(film.width, film.height, channels)?;
@@ -93,16 +103,19 @@ pub fn to_display(
                     dst[c] = if v.is_finite() { v } else { background[c] };
                 }
             }
-            DisplayKind::Intensity(w) | DisplayKind::Depth(w) => {
+            DisplayKind::Intensity(w, _) | DisplayKind::Depth(w, _) => {
                 let v = src[0] as f64;
                 if v.is_nan() {
                     dst.copy_from_slice(&background[..channels]);
                 } else {
                     let g = match kind {
-                        DisplayKind::Depth(_) => 1.0 - w.unit(v),
+                        DisplayKind::Depth(..) => 1.0 - w.unit(v),
                         _ => w.unit(v),
-                    } as f32;
-                    dst.fill(g);
+                    };
+                    match map {
+                        Some(m) => dst.copy_from_slice(&m.at(g)),
+                        None => dst.fill(g as f32),
+                    }
                 }
             }
         }
@@ -124,11 +137,39 @@ mod tests {
         };
         let w = Window::of_films([&f]);
         assert_eq!((w.lo, w.hi), (1.0, 3.0));
-        let d = to_display(&f, DisplayKind::Intensity(w), [0.25; 3]).unwrap();
+        let d = to_display(&f, DisplayKind::Intensity(w, None), [0.25; 3]).unwrap();
         assert_eq!(d.data, vec![0.0, 1.0, 0.25]);
-        let d = to_display(&f, DisplayKind::Depth(w), [0.0, 0.0, 1.0]).unwrap();
+        let grey = to_display(
+            &f,
+            DisplayKind::Intensity(w, Some(Colormap::Grey)),
+            [0.25; 3],
+        );
+        assert_eq!(grey.unwrap().data, d.data);
+        let d = to_display(&f, DisplayKind::Depth(w, None), [0.0, 0.0, 1.0]).unwrap();
         assert_eq!(d.channels, 3);
         assert_eq!(d.data, vec![1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn colour_maps_turn_the_grey_level_into_a_colour() {
+        let f = Film {
+            width: 3,
+            height: 1,
+            channels: 1,
+            data: vec![1.0, 3.0, f32::NAN],
+        };
+        let w = Window { lo: 1.0, hi: 3.0 };
+        let hot = Some(Colormap::Hot);
+        let d = to_display(&f, DisplayKind::Intensity(w, hot), [0.25; 3]).unwrap();
+        assert_eq!(d.channels, 3);
+        // matplotlib's hot: #0b0000 at 0, white at 1; a miss keeps the background
+        let want = [0.0416, 0.0, 0.0, 1.0, 1.0, 1.0, 0.25, 0.25, 0.25];
+        for (g, w) in d.data.iter().zip(want) {
+            assert!((g - w).abs() < 1e-6, "{:?}", d.data);
+        }
+        // depth: near (low values) bright
+        let d = to_display(&f, DisplayKind::Depth(w, hot), [0.0; 3]).unwrap();
+        assert_eq!(&d.data[..3], &[1.0; 3]);
     }
 
     #[test]

@@ -7,6 +7,7 @@ pub mod animation;
 pub mod display;
 pub mod encode;
 pub mod manifest;
+pub mod overlay;
 pub mod stereo;
 pub mod viewer;
 pub mod write;
@@ -160,6 +161,49 @@ pub fn describe_outputs(scene: &Scene, out: &Path, viewer: bool) -> String {
         );
     }
     if scene.image.format != Format::Nrrd {
+        for l in &scene.labels {
+            let text: String = l
+                .text
+                .iter()
+                .map(|p| match p {
+                    overlay::Part::Text(t) => t.clone(),
+                    other => overlay::PLACEHOLDERS
+                        .iter()
+                        .find(|(_, q)| q == other)
+                        .map_or(String::new(), |(n, _)| format!("{{{n}}}")),
+                })
+                .collect();
+            let _ = writeln!(
+                s,
+                "label    {text:?} at {}, {} px, colour {:?}, drawn into every PNG frame",
+                l.position.name(),
+                l.size,
+                l.color
+            );
+        }
+        if scene.image.scale_bar {
+            let _ = writeln!(
+                s,
+                "overlay  scale bar at the bottom left: 1, 2 or 5 x 10^k world units, at most a quarter of the width"
+            );
+        }
+        if scene.image.colorbar {
+            let names: Vec<&str> = scene
+                .passes
+                .iter()
+                .filter(|p| p.mode.is_intensity())
+                .map(|p| p.name.as_str())
+                .collect();
+            let _ = writeln!(
+                s,
+                "overlay  colour bar of the window on the right of {}",
+                if names.is_empty() {
+                    "no pass (none is an intensity pass)".to_string()
+                } else {
+                    format!("pass {}", names.join(", "))
+                }
+            );
+        }
         let fps = scene.animation.as_ref().map_or(24.0, |a| a.fps);
         for q in &seqs {
             let _ = writeln!(s, "video    {}", animation::ffmpeg_command(out, q, fps));

@@ -1,6 +1,8 @@
 //! Laying out, encoding and writing the images of one (pass, frame).
 
 use super::*;
+use crate::output::overlay::{self, Colorbar, FrameInfo, Overlay, ScaleBar};
+use crate::scene::{MipOutput, Mode, Projection};
 
 /// Lays out, encodes and writes the images of one (pass, frame); returns each file
 /// with its manifest entry.
@@ -14,17 +16,26 @@ pub(super) fn write_frame(
     let format = scene.image.format;
     let bg = scene.image.background;
     let display_kind = match (plan.passes[p].kind(), window) {
-        (ImageKind::Depth, Some(w)) => DisplayKind::Depth(w),
-        (_, Some(w)) => DisplayKind::Intensity(w),
+        (ImageKind::Depth, Some(w)) => DisplayKind::Depth(w, pass.colormap),
+        (_, Some(w)) => DisplayKind::Intensity(w, pass.colormap),
         _ => DisplayKind::Rgba,
     };
-    // Films in the form the format stores: raw values for NRRD, display colours for PNG.
+    // Films in the form the format stores: raw values for NRRD, display colours for PNG
+    // (with the overlays drawn over them).
     let stored: Vec<(Eye, std::borrow::Cow<Film>)> = fv
         .eyes
         .iter()
         .map(|e| match format {
             Format::Nrrd => Ok((e.eye, std::borrow::Cow::Borrowed(e.film))),
             _ => to_display(e.film, display_kind, bg)
+                .and_then(|f| {
+                    let o = frame_overlay(scene, plan, p, k, &e.view, display_kind);
+                    if o.is_empty() {
+                        Ok(f)
+                    } else {
+                        overlay::draw(f, &o, bg)
+                    }
+                })
                 .map(|f| (e.eye, std::borrow::Cow::Owned(f)))
                 .map_err(|a| Error::Encode {
                     path: frame_path(&plan.out, &pass.name, k, e.eye, format.extension()),
@@ -103,4 +114,74 @@ pub(super) fn write_frame(
         files.push((path, record));
     }
     Ok(files)
+}
+
+/// What is drawn over one eye's picture of pass `p`, frame `k`: the scene's labels
+/// (placeholders from the frame's centre view, so both eyes of a stereo frame agree),
+/// the scale bar of an orthographic view, and the colour bar of an intensity pass.
+fn frame_overlay(
+    scene: &Scene,
+    plan: &Plan,
+    p: usize,
+    k: usize,
+    view: &View,
+    kind: DisplayKind,
+) -> Overlay {
+    let pass = &scene.passes[p];
+    // the frame's camera on any path (keyframes, rock, elevation, circle)
+    let camera = scene.camera_at(k);
+    let info = FrameInfo {
+        scene: &scene.name,
+        pass: &pass.name,
+        frame: k,
+        azimuth: camera.azimuth_deg,
+        elevation: camera.elevation_deg,
+    };
+    let labels = scene
+        .labels
+        .iter()
+        .map(|l| (l.text_for(&info), l.clone()))
+        .collect();
+    let scale_bar =
+        (scene.image.scale_bar && view.projection == Projection::Orthographic).then(|| ScaleBar {
+            pixel_size: 2.0 * view.half_height / plan.height as f64,
+            unit: plan.length_unit.clone(),
+        });
+    // values of the volume under units = "data" for the passes whose window is on
+    // the value axis
+    let value_based = matches!(
+        pass.mode,
+        Mode::Mip {
+            output: MipOutput::Value,
+            ..
+        } | Mode::Minip
+            | Mode::Average
+            | Mode::Lmip { .. }
+    );
+    let shown = |x: f64| {
+        if value_based {
+            scene.volume.units.show(x)
+        } else {
+            x
+        }
+    };
+    let colorbar = match (scene.image.colorbar, kind) {
+        (true, DisplayKind::Intensity(w, map)) => Some(Colorbar {
+            map,
+            top: shown(w.hi),
+            bottom: shown(w.lo),
+        }),
+        // near (the window's low end) is bright
+        (true, DisplayKind::Depth(w, map)) => Some(Colorbar {
+            map,
+            top: w.lo,
+            bottom: w.hi,
+        }),
+        _ => None,
+    };
+    Overlay {
+        labels,
+        scale_bar,
+        colorbar,
+    }
 }

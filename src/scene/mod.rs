@@ -48,6 +48,8 @@ pub struct Scene {
     pub clips: Vec<Clip>,
     /// What `[[keyframe]]` tables animate (with `orbit.path` = keyframes).
     pub keyframes: Option<Keyframes>,
+    /// Text drawn into PNG frames (`[[label]]`), in file order.
+    pub labels: Vec<crate::output::overlay::Label>,
     /// Animated files to assemble from each pass's frames, when requested.
     pub animation: Option<Animation>,
     /// Write `{out}/index.html`, a turntable page for the browser, once every frame
@@ -298,6 +300,10 @@ pub struct ImageSpec {
     pub format: Format,
     /// Output folder, with `{scene}` already substituted (relative to the working directory).
     pub out: PathBuf,
+    /// Draw a scale bar into PNG frames (orthographic views only).
+    pub scale_bar: bool,
+    /// Draw a colour bar of the window into the PNG frames of intensity passes.
+    pub colorbar: bool,
 }
 
 /// What an X-ray pass stores.
@@ -470,6 +476,10 @@ pub struct RenderPass {
     pub integration: Integration,
     /// Jitter each ray's first sample by a per-pixel fraction of the step.
     pub jitter: bool,
+    /// The colour map of an intensity pass's PNG output (`colormap`): the windowed
+    /// value goes through it instead of showing as grey. `None` = grey; a depth-coded
+    /// MIP keeps its map in [`MipOutput::DepthCoded`] and has `None` here.
+    pub colormap: Option<crate::transfer::Colormap>,
 }
 
 /// One `[[clip]]` plane: removes the half-space its normal points into.

@@ -32,6 +32,16 @@ pub struct SceneFile {
     pub viewer: Option<Spanned<ViewerTable>>,
     pub clip: Option<Vec<Spanned<ClipTable>>>,
     pub keyframe: Option<Vec<Spanned<KeyframeTable>>>,
+    pub label: Option<Vec<Spanned<LabelTable>>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LabelTable {
+    pub text: Sp<String>,
+    pub position: Sp<String>,
+    pub size: Sp<f64>,
+    pub color: Sp<[f64; 3]>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -164,6 +174,8 @@ pub struct ImageTable {
     pub background: Sp<[f64; 3]>,
     pub format: Sp<String>,
     pub out: Sp<String>,
+    pub scale_bar: Sp<bool>,
+    pub colorbar: Sp<bool>,
 }
 
 #[derive(Debug, Deserialize)]

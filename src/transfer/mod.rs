@@ -8,9 +8,11 @@
 //! and compositing".
 
 mod colormap;
+mod colormap_tables;
 mod curve;
 mod one_d;
 mod preintegrated;
+mod presets;
 mod two_d;
 
 use std::fmt;
@@ -18,6 +20,7 @@ use std::fmt;
 pub use colormap::Colormap;
 pub use one_d::{Table1D, Transfer1D};
 pub use preintegrated::{Preintegrated, COLOR_ENTRIES, INTEGRAL_ENTRIES, MAX_EXTINCTION};
+pub use presets::{Preset, PRESETS};
 pub use two_d::{Table2D, Transfer2D, Widget, WidgetShape};
 
 /// How a 1D transfer function interpolates between its knots.

@@ -8,6 +8,7 @@
 mod appearance;
 mod clip;
 mod keyframes;
+mod labels;
 mod passes;
 mod view;
 mod volume;
@@ -36,6 +37,9 @@ struct Resolver<'a> {
     base_dir: &'a Path,
     /// `[volume] units`, once the volume is resolved.
     units: Units,
+    /// `[volume] window` (or a synthetic field's default), once the volume is
+    /// resolved: what places the data-unit knots of transfer-function presets.
+    window: Option<[f64; 2]>,
 }
 
 pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
@@ -54,6 +58,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         warnings: Vec::new(),
         base_dir,
         units: Units::Normalised,
+        window: None,
     };
     let name = path
         .file_stem()
@@ -62,7 +67,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let volume = r.volume(&file.volume);
     let camera = r.camera(file.camera.as_ref());
     let mut orbit = r.orbit(file.orbit.as_ref());
-    let image = r.image(file.image.as_ref(), &name);
+    let image = r.image(file.image.as_ref(), &name, camera.projection);
     let stereo = file
         .stereo
         .as_ref()
@@ -88,6 +93,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         &clips,
         camera.fit.is_some(),
     );
+    let labels = r.labels(file.label.as_deref(), &image, &passes);
     // "needs `key`" adds nothing when `key` was given but of the wrong type
     diags.extend(r.diags.into_iter().filter(|d| {
         !(d.message.contains("needs")
@@ -111,6 +117,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         light,
         clips,
         keyframes,
+        labels,
         animation,
         viewer,
         text: text.to_string(),

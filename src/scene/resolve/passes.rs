@@ -7,7 +7,10 @@ const MODE_KEYS: &[(&str, &[&str])] = &[
     ("output", &["xray", "mip"]),
     ("mu", &["xray"]),
     ("depth_cue", &["mip"]),
-    ("colormap", &["mip"]),
+    (
+        "colormap",
+        &["xray", "mip", "minip", "average", "lmip", "depth"],
+    ),
     ("threshold", &["lmip", "depth"]),
     ("iso", &["surface"]),
     ("material", &["surface", "composite"]),
@@ -52,6 +55,7 @@ impl Resolver<'_> {
                 window: None,
                 integration: Integration::Sampled,
                 jitter: false,
+                colormap: None,
             }];
         };
         if tables.is_empty() {
@@ -177,6 +181,12 @@ impl Resolver<'_> {
             Some([lo, hi])
         });
         self.check_method(v, integration, interpolation, jitter);
+        let map = self.choice(
+            "colormap",
+            &v.colormap,
+            crate::transfer::Colormap::ALL,
+            crate::transfer::Colormap::Turbo,
+        );
         let mode = match mode_name {
             "xray" => Mode::Xray {
                 output: self.choice(
@@ -191,7 +201,7 @@ impl Resolver<'_> {
                 ),
                 mu: self.number("mu", &v.mu, 1.0, |x| x >= 0.0, "an attenuation scale >= 0"),
             },
-            "mip" => self.mip(v),
+            "mip" => self.mip(v, map),
             "minip" => Mode::Minip,
             "average" => Mode::Average,
             "lmip" => Mode::Lmip {
@@ -225,16 +235,10 @@ impl Resolver<'_> {
                     .transfer
                     .as_ref()
                     .map_or("grey".to_string(), |t| t.get_ref().clone());
-                let Some(transfer) = transfers.get(&transfer_name).cloned() else {
-                    let span = v.transfer.as_ref().map_or(t.span(), |s| s.span());
-                    let hint = suggest(&transfer_name, transfers.keys().map(|s| s.as_str()))
-                        .map(|n| format!("; did you mean `{n}`?"))
-                        .unwrap_or_default();
-                    self.err(span, format!(
-                        "transfer = \"{transfer_name}\" is not defined: add a [transfer.{transfer_name}] table, or use one of {}{hint}",
-                        quoted_list(transfers.keys().map(|s| s.as_str()))
-                    ));
-                    return None;
+                let span = v.transfer.as_ref().map_or(t.span(), |s| s.span());
+                let transfer = match transfers.get(&transfer_name) {
+                    Some(tf) => tf.clone(),
+                    None => self.preset(&transfer_name, transfers, span)?,
                 };
                 let preintegrated = v.preintegrated.as_ref().is_some_and(|p| *p.get_ref());
                 if let (true, Transfer::TwoD(_), Some(p)) =
@@ -284,6 +288,16 @@ impl Resolver<'_> {
                 ));
             }
         }
+        // a depth-coded MIP's map colours the depth; every other intensity pass's
+        // colours its windowed value
+        let depth_coded = matches!(
+            mode,
+            Mode::Mip {
+                output: MipOutput::DepthCoded(_),
+                ..
+            }
+        );
+        let colormap = (v.colormap.is_some() && !depth_coded).then_some(map);
         Some(RenderPass {
             name,
             mode,
@@ -292,11 +306,12 @@ impl Resolver<'_> {
             window,
             integration,
             jitter,
+            colormap,
         })
     }
 
-    /// A MIP pass's depth cue and output.
-    fn mip(&mut self, v: &RenderTable) -> Mode {
+    /// A MIP pass's depth cue and output; `map` colours the depth of a depth-coded one.
+    fn mip(&mut self, v: &RenderTable, map: crate::transfer::Colormap) -> Mode {
         let depth_cue = self.number(
             "depth_cue",
             &v.depth_cue,
@@ -320,24 +335,54 @@ impl Resolver<'_> {
             ],
             Out::Value,
         );
-        let map = self.choice(
-            "colormap",
-            &v.colormap,
-            crate::transfer::Colormap::ALL,
-            crate::transfer::Colormap::Turbo,
-        );
         let output = match out {
             Out::Value => MipOutput::Value,
             Out::DepthOfMax => MipOutput::DepthOfMax,
             Out::DepthCoded => MipOutput::DepthCoded(map),
         };
-        if let (Some(c), false) = (&v.colormap, matches!(out, Out::DepthCoded)) {
-            self.err(
-                c.span(),
-                "`colormap` colours the depth of the maximum: it needs output = \"depth-coded\"",
-            );
-        }
         Mode::Mip { depth_cue, output }
+    }
+
+    /// The transfer-function preset `name` placed on the volume's window, or an error
+    /// at `span` (not a preset, or no window to place its data values with).
+    fn preset(
+        &mut self,
+        name: &str,
+        transfers: &BTreeMap<String, Transfer>,
+        span: Range<usize>,
+    ) -> Option<Transfer> {
+        let Some(preset) = transfer::Preset::find(name) else {
+            let names: Vec<&str> = transfers
+                .keys()
+                .map(|s| s.as_str())
+                .chain(transfer::PRESETS.iter().map(|p| p.name))
+                .collect();
+            let hint = suggest(name, names.iter().copied())
+                .map(|n| format!("; did you mean `{n}`?"))
+                .unwrap_or_default();
+            self.err(span, format!(
+                "transfer = \"{name}\" is not defined: add a [transfer.{name}] table, or use one of {}{hint}",
+                quoted_list(names.iter().copied())
+            ));
+            return None;
+        };
+        let Some([lo, hi]) = self.window else {
+            self.err(span, format!(
+                "transfer = \"{name}\" is a preset with knots in data values (Slicer's {}): it needs `window = [lo, hi]` in [volume], the data values its knots are placed on (for CT in Hounsfield units, e.g. window = [-1024, 3071])",
+                preset.slicer
+            ));
+            return None;
+        };
+        match preset.transfer(lo, hi) {
+            Ok(tf) => Some(Transfer::OneD(Arc::new(tf))),
+            Err(e) => {
+                self.err(
+                    span,
+                    format!("transfer = \"{name}\" on the window [{lo}, {hi}]: {e}"),
+                );
+                None
+            }
+        }
     }
 
     /// Combinations of integration, interpolation and jitter that do not work.

@@ -176,13 +176,20 @@ impl Resolver<'_> {
         o
     }
 
-    pub(super) fn image(&mut self, t: Option<&Spanned<ImageTable>>, scene_name: &str) -> ImageSpec {
+    pub(super) fn image(
+        &mut self,
+        t: Option<&Spanned<ImageTable>>,
+        scene_name: &str,
+        projection: Projection,
+    ) -> ImageSpec {
         let mut im = ImageSpec {
             width: 512,
             height: 512,
             background: [0.0; 3],
             format: Format::Png,
             out: PathBuf::from("out").join(scene_name),
+            scale_bar: false,
+            colorbar: false,
         };
         let Some(t) = t else { return im };
         let v = t.get_ref();
@@ -212,6 +219,13 @@ impl Resolver<'_> {
             match substitute_out(o.get_ref(), scene_name) {
                 Ok(p) => im.out = PathBuf::from(p),
                 Err(m) => self.err(o.span(), m),
+            }
+        }
+        im.colorbar = v.colorbar.as_ref().is_some_and(|c| *c.get_ref());
+        if let Some(s) = &v.scale_bar {
+            im.scale_bar = *s.get_ref();
+            if im.scale_bar && projection == Projection::Perspective {
+                self.err(s.span(), "scale_bar = true needs [camera] projection = \"orthographic\": in a perspective view the length of a world unit in pixels changes with depth");
             }
         }
         im

@@ -106,6 +106,7 @@ impl Resolver<'_> {
             }
         };
         self.units = units;
+        self.window = window;
         VolumeSpec {
             source,
             window,
