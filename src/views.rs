@@ -241,6 +241,9 @@ impl Views {
         let needed = self.needed(frames.iter().copied());
         let mut s = format!("{needed} to render per pass ({images} eye images");
         match (self.placement, self.reuse, self.share) {
+            (Placement::ToeIn { .. }, None, true) if self.cameras.is_some() => {
+                s.push_str("; no reuse: views coincide only on the circle path")
+            }
             (Placement::ToeIn { .. }, Some(m), true) => {
                 let _ = write!(
                     s,
