@@ -60,12 +60,11 @@ pub(super) fn render_passes(
         index_from_world,
         &plan.passes,
     );
-    // one runtime per variant: the passes, or their keyframed values per frame
-    let runtimes: Vec<Box<dyn RenderView + '_>> = plan
-        .variants
-        .iter()
-        .map(|p| p.prepare(&resources))
-        .collect();
+    // One runtime per variant (the passes, or their keyframed values per frame),
+    // prepared when a batch first needs it and dropped after the last batch that
+    // does: a keyframed sequence holds a few variants' tables at a time, not one
+    // per frame.
+    let mut runtimes: HashMap<usize, Box<dyn RenderView + '_>> = HashMap::new();
     let views = &plan.views;
     let view_of = |key: ViewKey, w: usize, h: usize| views.view(&scene.camera, key, w, h, sphere);
 
@@ -92,10 +91,21 @@ pub(super) fn render_passes(
                         views.eyes().iter().map(move |&e| (v, views.key(k, e)))
                     })
                     .collect();
-                let films: Vec<Film> = orbit_views
-                    .par_iter()
-                    .map(|&(v, key)| runtimes[v].render(&view_of(key, w, h), &frame).0)
-                    .collect();
+                // one variant at a time (previews are of intensity passes: no tables)
+                let mut films: Vec<Film> = Vec::with_capacity(orbit_views.len());
+                let variants: BTreeSet<usize> = orbit_views.iter().map(|&(v, _)| v).collect();
+                for v in variants {
+                    let rt = plan.variants[v].prepare(&resources);
+                    let keys: Vec<ViewKey> = orbit_views
+                        .iter()
+                        .filter(|&&(u, _)| u == v)
+                        .map(|&(_, key)| key)
+                        .collect();
+                    films.par_extend(
+                        keys.par_iter()
+                            .map(|&key| rt.render(&view_of(key, w, h), &frame).0),
+                    );
+                }
                 Some(Window::of_films(&films))
             }
         })
@@ -128,8 +138,10 @@ pub(super) fn render_passes(
         batches.last_mut().expect("pushed above").push((p, k));
     }
     let mut last_use: HashMap<CacheKey, usize> = HashMap::new();
+    let mut variant_last_use: HashMap<usize, usize> = HashMap::new();
     for (b, batch) in batches.iter().enumerate() {
         for &(p, k) in batch {
+            variant_last_use.insert(plan.variant(p, k), b);
             for &e in views.eyes() {
                 last_use.insert(cache_key(p, k, e), b);
             }
@@ -150,10 +162,15 @@ pub(super) fn render_passes(
                 }
             }
         }
+        for &(ck, _) in &todo {
+            runtimes
+                .entry(ck.0)
+                .or_insert_with(|| plan.variants[ck.0].prepare(&resources));
+        }
         let fresh: Vec<(CacheKey, Rendered)> = todo
             .par_iter()
             .map(|&(ck, first)| {
-                let rt = &runtimes[ck.0];
+                let rt = &runtimes[&ck.0];
                 let view = view_of(ck.1, plan.width, plan.height);
                 let t0 = Instant::now();
                 let (film, counts) = rt.render(&view, &frame);
@@ -212,6 +229,7 @@ pub(super) fn render_passes(
             .collect::<Result<_, Error>>()?;
         results.extend(written);
         cache.retain(|ck, _| last_use.get(ck).is_some_and(|&last| last > b));
+        runtimes.retain(|v, _| variant_last_use.get(v).is_some_and(|&last| last > b));
     }
     progress.finish();
     results.sort_by_key(|r| r.0);
