@@ -181,7 +181,8 @@ impl Segment {
     /// roots of its cubic derivative. The roots of the derivative's own derivative
     /// (a quadratic, solved like [`Segment::critical_points`]) split the segment
     /// into pieces where the derivative is monotone; a piece where it falls from
-    /// positive to negative holds one maximum, found by bisection to round-off.
+    /// positive to negative holds one maximum, refined to round-off by the
+    /// crossings' Illinois search.
     pub fn weighted_max(&self, a: f64, b: f64) -> (f64, f64) {
         let [c0, c1, c2, c3] = self.c;
         let q = [
@@ -209,20 +210,17 @@ impl Segment {
         };
         let mut x0 = 0.0;
         for &x1 in cuts[..n].iter().chain([self.len].iter()) {
-            if dg.eval(x0) > 0.0 && dg.eval(x1) < 0.0 {
-                let (mut lo, mut hi) = (x0, x1);
-                for _ in 0..80 {
-                    let mid = 0.5 * (lo + hi);
-                    if mid <= lo || mid >= hi {
-                        break;
-                    }
-                    if dg.eval(mid) > 0.0 {
-                        lo = mid;
-                    } else {
-                        hi = mid;
-                    }
-                }
-                consider(0.5 * (lo + hi));
+            let (d0, d1) = (dg.eval(x0), dg.eval(x1));
+            if d0 > 0.0 && d1 < 0.0 {
+                // the root of the falling derivative: a rising root of -g'
+                let (root, _) = illinois(
+                    |u| -dg.eval(u),
+                    (x0, -d0),
+                    (x1, -d1),
+                    |a, b| b - a <= 4.0 * f64::EPSILON * b.abs().max(a.abs()) || b <= a,
+                    200,
+                );
+                consider(root);
             }
             x0 = x1;
         }
