@@ -276,17 +276,20 @@ impl Iterator for Walk<'_> {
         if self.done {
             return None;
         }
-        let tn = self.t_next;
-        let a = if tn[0] <= tn[1] && tn[0] <= tn[2] {
-            0
-        } else if tn[1] <= tn[2] {
-            1
+        // one element at a time: a copy of the array would be a wide load over the
+        // narrow store of the last step's crossing, which the store buffer cannot
+        // forward
+        let (x, y, z) = (self.t_next[0], self.t_next[1], self.t_next[2]);
+        let (a, next) = if x <= y && x <= z {
+            (0, x)
+        } else if y <= z {
+            (1, y)
         } else {
-            2
+            (2, z)
         };
         let t0 = self.t;
         // a NaN crossing (not `< t_exit`) ends the walk too
-        if tn[a].partial_cmp(&self.t_exit) != Some(std::cmp::Ordering::Less) {
+        if next.partial_cmp(&self.t_exit) != Some(std::cmp::Ordering::Less) {
             self.done = true;
             return Some(Span {
                 t0,
@@ -295,7 +298,7 @@ impl Iterator for Walk<'_> {
                 last: true,
             });
         }
-        let t1 = if tn[a] > t0 { tn[a] } else { t0 };
+        let t1 = if next > t0 { next } else { t0 };
         let span = Span {
             t0,
             t1,

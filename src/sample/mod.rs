@@ -128,6 +128,14 @@ pub trait Field: Sync {
         let _ = cache;
         self.value(p)
     }
+    /// [`Field::value_cached`] at `o + d t` for each `t` of `ts`, into `out` (as long
+    /// as `ts`): the same bits, possibly several samples at a time.
+    #[inline(always)]
+    fn values_along(&self, o: DVec3, d: DVec3, ts: &[f64], out: &mut [f32], cache: &mut CellCache) {
+        for (v, &t) in out.iter_mut().zip(ts) {
+            *v = self.value_cached(o + d * t, cache);
+        }
+    }
     /// The gradient of the normalised value at `p`, in world units
     /// (normalised value per world unit).
     fn gradient(&self, p: DVec3) -> DVec3;
@@ -149,6 +157,10 @@ impl<F: Field + ?Sized> Field for &F {
     #[inline(always)]
     fn value_cached(&self, p: DVec3, cache: &mut CellCache) -> f32 {
         (**self).value_cached(p, cache)
+    }
+    #[inline(always)]
+    fn values_along(&self, o: DVec3, d: DVec3, ts: &[f64], out: &mut [f32], cache: &mut CellCache) {
+        (**self).values_along(o, d, ts, out, cache)
     }
     fn gradient(&self, p: DVec3) -> DVec3 {
         (**self).gradient(p)

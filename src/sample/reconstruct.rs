@@ -89,6 +89,12 @@ impl<T: Voxel> Field for Trilinear<'_, T> {
         self.grid.trilinear_cached(p.to_array(), cache)
     }
 
+    #[inline(always)]
+    fn values_along(&self, o: DVec3, d: DVec3, ts: &[f64], out: &mut [f32], cache: &mut CellCache) {
+        self.grid
+            .trilinear_along(o.to_array(), d.to_array(), ts, out, cache)
+    }
+
     fn gradient(&self, p: DVec3) -> DVec3 {
         self.gradients.interpolated(&self.grid, p)
     }

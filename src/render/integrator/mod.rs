@@ -127,19 +127,21 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
 ) -> u64 {
     let n = lattice.len();
     let index = &ray.index;
-    let mut cache = CellCache::default();
+    let mut batch = Batch::default();
     // takes samples `from..to`; the count taken, and whether the consumer stopped
     let mut take = |from: usize, to: usize, consumer: &mut C| -> (u64, bool) {
-        for i in from..to {
-            let t = lattice.t(i);
-            if consumer
-                .take(i, t, field.value_cached(index.at(t), &mut cache))
-                .is_break()
-            {
-                return ((i + 1 - from) as u64, true);
+        let mut stopped = None;
+        batch.sample(field, index, lattice, from, to, |i, t, v| {
+            let stop = consumer.take(i, t, v).is_break();
+            if stop {
+                stopped = Some(i);
             }
+            stop
+        });
+        match stopped {
+            Some(i) => ((i + 1 - from) as u64, true),
+            None => ((to - from) as u64, false),
         }
-        ((to - from) as u64, false)
     };
     let Some(grid) = grid else {
         return take(0, n, consumer).0;
@@ -193,6 +195,65 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
         taken += take(i, n, consumer).0;
     }
     taken
+}
+
+/// Samples along a ray taken [`BATCH`] at a time ([`Field::values_along`]), with the
+/// sampler's cell cache: the positions and values of one batch.
+struct Batch {
+    ts: [f64; BATCH],
+    values: [f32; BATCH],
+    cache: CellCache,
+}
+
+/// Samples per [`Batch`]: enough to amortise a call into the vector path, few enough
+/// that a ray stopping early wastes little.
+const BATCH: usize = 16;
+
+impl Default for Batch {
+    fn default() -> Self {
+        Batch {
+            ts: [0.0; BATCH],
+            values: [0.0; BATCH],
+            cache: CellCache::default(),
+        }
+    }
+}
+
+impl Batch {
+    /// Hands `visit` samples `from..to` of `lattice` in order, as `(index, t,
+    /// value)`, until it returns true (a few samples after that one may have been
+    /// computed, never handed over).
+    #[inline(always)]
+    fn sample<L: Lattice, F: Field>(
+        &mut self,
+        field: &F,
+        ray: &IndexRay,
+        lattice: &L,
+        from: usize,
+        to: usize,
+        mut visit: impl FnMut(usize, f64, f32) -> bool,
+    ) {
+        let mut i = from;
+        while i < to {
+            let m = (to - i).min(BATCH);
+            for (k, t) in self.ts[..m].iter_mut().enumerate() {
+                *t = lattice.t(i + k);
+            }
+            field.values_along(
+                ray.o,
+                ray.d,
+                &self.ts[..m],
+                &mut self.values[..m],
+                &mut self.cache,
+            );
+            for k in 0..m {
+                if visit(i + k, self.ts[k], self.values[k]) {
+                    return;
+                }
+            }
+            i += m;
+        }
+    }
 }
 
 /// The jitter of one pixel's first sample, in `[0, 1)` of a step: a hash of the

@@ -8,10 +8,10 @@
 use std::ops::ControlFlow;
 
 use super::xray::Trapezoid;
-use super::{drive, Consumer, Counts, Integrand, PixelRay};
+use super::{drive, Batch, Consumer, Counts, Integrand, PixelRay};
 use crate::render::march::{Lattice, March};
 use crate::render::skip::MacroGrid;
-use crate::sample::{CellCache, Field};
+use crate::sample::Field;
 use crate::transfer::Colormap;
 
 /// Maximum intensity projection.
@@ -303,57 +303,62 @@ fn brightest_first<F: Field, C: Ranked>(
     if n > u32::MAX as usize || grid.len() > u32::MAX as usize {
         return None;
     }
-    // (first sample, end, cell) of each span holding samples
-    let mut spans = [std::mem::MaybeUninit::<(u32, u32, u32)>::uninit(); MAX_SPANS];
+    // (where the span ends, its cell) of each span: the samples of span `s` are
+    // found only if it is sampled, from `s - 1`'s end and its own (the first span
+    // starts at sample 0, the last ends at `n`)
+    let mut spans = [std::mem::MaybeUninit::<(f64, u32)>::uninit(); MAX_SPANS];
     let mut count = 0;
     let (mut best_key, mut best_span) = (f32::NEG_INFINITY, 0);
-    let mut i = 0;
+    let mut complete = false;
     for span in grid.walk(&ray.index, ray.t_enter, ray.t_exit) {
-        let j = if span.last {
-            n
-        } else {
-            march.first_at_or_after(span.t1).max(i)
-        };
-        if j > i {
-            if count == MAX_SPANS {
-                return None;
-            }
-            let key = e.rank(grid.range(span.cell));
-            if key > best_key {
-                (best_key, best_span) = (key, count);
-            }
-            spans[count].write((i as u32, j as u32, span.cell as u32));
-            count += 1;
-            i = j;
+        if count == MAX_SPANS {
+            return None;
         }
+        let key = e.rank(grid.range(span.cell));
+        if key > best_key {
+            (best_key, best_span) = (key, count);
+        }
+        spans[count].write((span.t1, span.cell as u32));
+        count += 1;
         if span.last {
+            complete = true;
             break;
         }
     }
-    if i < n {
+    // a walk that ended early (non-finite parameters) goes in order
+    if !complete {
         return None;
     }
     // SAFETY: the first `count` entries were written above; `MaybeUninit<T>` has the
     // layout of `T`.
-    let spans: &[(u32, u32, u32)] =
-        unsafe { &*(std::ptr::addr_of!(spans[..count]) as *const [(u32, u32, u32)]) };
+    let spans: &[(f64, u32)] =
+        unsafe { &*(std::ptr::addr_of!(spans[..count]) as *const [(f64, u32)]) };
+    let end = |s: usize| {
+        if s + 1 == count {
+            n
+        } else {
+            march.first_at_or_after(spans[s].0)
+        }
+    };
     let mut taken = 0u64;
-    let mut cache = CellCache::default();
-    let mut sample = |e: &mut C, (a, b, cell): (u32, u32, u32), earlier: bool| {
-        let range = grid.range(cell as usize);
+    let mut batch = Batch::default();
+    let mut sample = |e: &mut C, s: usize, earlier: bool| {
+        let range = grid.range(spans[s].1 as usize);
         if (earlier && e.skippable_earlier(range)) || (!earlier && e.skippable(0, range)) {
             return;
         }
-        for k in a as usize..b as usize {
-            let t = march.t(k);
-            let _ = e.take(k, t, field.value_cached(ray.index.at(t), &mut cache));
-        }
-        taken += u64::from(b - a);
+        let a = if s == 0 { 0 } else { end(s - 1) };
+        let b = end(s).max(a);
+        batch.sample(field, &ray.index, march, a, b, |k, t, v| {
+            let _ = e.take(k, t, v);
+            false
+        });
+        taken += (b - a) as u64;
     };
-    sample(e, spans[best_span], false);
-    for (s, &span) in spans.iter().enumerate() {
+    sample(e, best_span, false);
+    for s in 0..count {
         if s != best_span {
-            sample(e, span, s < best_span);
+            sample(e, s, s < best_span);
         }
     }
     Some(taken)

@@ -1,0 +1,279 @@
+//! Trilinear samples four at a time with AVX2 (detected at run time): the positions,
+//! the cell search and the interpolation in vector lanes, one sample per lane, the
+//! voxels fetched by gathers. Each lane does the operations of
+//! [`Grid::trilinear_sse2`] in the same order (no fused multiply-add), so a sample has
+//! the same bits whichever path takes it, on any machine.
+
+use std::arch::x86_64::*;
+
+use super::Grid;
+use crate::volume::{ScalarType, Voxel};
+
+/// The voxel storage the gathers read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Gather {
+    /// float32 voxels, normalised in f64 lanes.
+    Float32,
+    /// 8-bit voxels read as `u8` bits, normalised by the table.
+    Bits8,
+    /// 16-bit voxels read as `u16` bits, normalised by the table.
+    Bits16,
+}
+
+impl Gather {
+    /// The gather path for voxels of type `T` on a grid of `n` voxels per axis, if
+    /// this machine has AVX2 and the grid suits it: the cell search converts to i32
+    /// and the flat index multiplies 32-bit lanes, and the x axis has two voxels (so
+    /// a cell's two voxels along x are adjacent in memory).
+    pub(super) fn for_grid<T: Voxel>(n: [usize; 3]) -> Option<Gather> {
+        let kind = match T::TYPE {
+            ScalarType::Float32 => Gather::Float32,
+            // the table is indexed by the raw bits for these two (signed data is read
+            // through them, see `bits_table`)
+            ScalarType::Uint8 => Gather::Bits8,
+            ScalarType::Uint16 => Gather::Bits16,
+            _ => return None,
+        };
+        let fits = n.iter().all(|&n| n < i32::MAX as usize)
+            && n[0].checked_mul(n[1]).is_some_and(|s| s < 1 << 31)
+            && n[0] >= 2;
+        (fits && std::is_x86_feature_detected!("avx2")).then_some(kind)
+    }
+}
+
+impl<T: Voxel> Grid<'_, T> {
+    /// The trilinear samples at `o + d t` (index space) for each `t` of `ts`, into
+    /// `out` (as long as `ts`): the bits of [`Grid::trilinear`] at each position.
+    ///
+    /// # Safety
+    /// The machine has AVX2 and `self.gather` is `Some` ([`Gather::for_grid`]).
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn trilinear_avx2(
+        &self,
+        o: [f64; 3],
+        d: [f64; 3],
+        ts: &[f64],
+        out: &mut [f32],
+    ) {
+        debug_assert_eq!(ts.len(), out.len());
+        let kind = self.gather.expect("the caller checked the gather path");
+        let axes = [0, 1, 2].map(|a| Axis {
+            o: _mm256_set1_pd(o[a]),
+            d: _mm256_set1_pd(d[a]),
+            last: _mm256_set1_pd(self.last[a]),
+            top: _mm256_set1_pd(self.top_f[a]),
+        });
+        let (sx, sxy) = (
+            _mm256_set1_epi64x(self.sx as i64),
+            _mm256_set1_epi64x(self.sxy as i64),
+        );
+        let [_, dy, dz] = self.step;
+        let rows = [0, dy, dz, dy + dz].map(|r| _mm256_set1_epi64x(r as i64));
+        // 8-bit rows are read four bytes at a time: a cell whose last row ends within
+        // two bytes of the data's end is sampled one lane at a time instead
+        let len = self.voxels.len();
+        let safe = (kind != Gather::Bits8 || len >= 4 + dy + dz)
+            .then(|| _mm256_set1_epi64x((len - 4 - dy - dz).min(i64::MAX as usize) as i64));
+        let groups = ts.len() / 4;
+        for g in 0..groups {
+            let t = _mm256_loadu_pd(ts.as_ptr().add(4 * g));
+            let (ix, fx) = locate(&axes[0], t);
+            let (iy, fy) = locate(&axes[1], t);
+            let (iz, fz) = locate(&axes[2], t);
+            // flat index of each lane's cell: i + sx j + sxy k (each below 2^31, the
+            // products below 2^62)
+            let base = _mm256_add_epi64(
+                _mm256_add_epi64(
+                    _mm256_cvtepi32_epi64(ix),
+                    _mm256_mul_epu32(_mm256_cvtepi32_epi64(iy), sx),
+                ),
+                _mm256_mul_epu32(_mm256_cvtepi32_epi64(iz), sxy),
+            );
+            let sample = match kind {
+                Gather::Float32 => {
+                    let c = rows.map(|r| self.row_f32(_mm256_add_epi64(base, r)));
+                    interpolate(c, fx, fy, fz)
+                }
+                Gather::Bits16 => {
+                    let c = rows.map(|r| self.row_bits::<2>(_mm256_add_epi64(base, r), 0xffff, 16));
+                    interpolate(c, fx, fy, fz)
+                }
+                Gather::Bits8 => {
+                    let safe = safe.is_some_and(|s| {
+                        _mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpgt_epi64(base, s))) == 0
+                    });
+                    if safe {
+                        let c =
+                            rows.map(|r| self.row_bits::<1>(_mm256_add_epi64(base, r), 0xff, 8));
+                        interpolate(c, fx, fy, fz)
+                    } else {
+                        let mut lanes = [0.0f32; 4];
+                        for (l, v) in lanes.iter_mut().enumerate() {
+                            let t = ts[4 * g + l];
+                            *v = self.trilinear([0, 1, 2].map(|a| o[a] + d[a] * t));
+                        }
+                        _mm_loadu_ps(lanes.as_ptr())
+                    }
+                }
+            };
+            _mm_storeu_ps(out.as_mut_ptr().add(4 * g), sample);
+        }
+        for k in 4 * groups..ts.len() {
+            let t = ts[k];
+            out[k] = self.trilinear([0, 1, 2].map(|a| o[a] + d[a] * t));
+        }
+    }
+
+    /// The normalised float32 voxels at flat indices `at` and `at + 1` of each lane:
+    /// (voxel `at` of lanes 0..4, voxel `at + 1` of lanes 0..4).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn row_f32(&self, at: __m256i) -> (__m128, __m128) {
+        // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
+        // voxel; each lane reads the two adjacent float32 as one 64-bit element
+        let pairs = _mm256_castpd_ps(_mm256_i64gather_pd::<4>(
+            self.voxels.as_ptr().cast::<f64>(),
+            at,
+        ));
+        let lo = _mm256_castps256_ps128(pairs); // a0 b0 a1 b1
+        let hi = _mm256_extractf128_ps::<1>(pairs); // a2 b2 a3 b3
+        let a = _mm_shuffle_ps::<0b10_00_10_00>(lo, hi);
+        let b = _mm_shuffle_ps::<0b11_01_11_01>(lo, hi);
+        let (l, s) = self.norm.lo_scale();
+        let (l, s) = (_mm256_set1_pd(l), _mm256_set1_pd(s));
+        let (zero, one) = (_mm256_setzero_pd(), _mm256_set1_pd(1.0));
+        // as `trilinear_sse2`: (v - lo) * scale, max with 0 (NaN -> 0), min with 1
+        let norm = |v: __m128| {
+            let x = _mm256_mul_pd(_mm256_sub_pd(_mm256_cvtps_pd(v), l), s);
+            _mm256_cvtpd_ps(_mm256_min_pd(_mm256_max_pd(x, zero), one))
+        };
+        (norm(a), norm(b))
+    }
+
+    /// The normalised 8- or 16-bit voxels (`BYTES` per voxel) at flat indices `at`
+    /// and `at + 1` of each lane, through the normalisation table: the lane reads
+    /// four bytes at voxel `at` and splits them by `mask` and `shift`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn row_bits<const BYTES: i32>(
+        &self,
+        at: __m256i,
+        mask: i32,
+        shift: i32,
+    ) -> (__m128, __m128) {
+        // SAFETY (the caller's): 16-bit voxels `at` and `at + 1` are the four bytes;
+        // for 8-bit data the caller checked that `at + 3` is inside the data
+        let words = _mm256_i64gather_epi32::<BYTES>(self.voxels.as_ptr().cast::<i32>(), at);
+        let mask = _mm_set1_epi32(mask);
+        let a = _mm_and_si128(words, mask);
+        let b = _mm_and_si128(_mm_srl_epi32(words, _mm_cvtsi32_si128(shift)), mask);
+        // SAFETY: the table has 2^(8 BYTES) entries and every index is below that
+        let lut = self.lut.as_ptr();
+        (_mm_i32gather_ps::<4>(lut, a), _mm_i32gather_ps::<4>(lut, b))
+    }
+}
+
+/// One axis' broadcast constants: the ray's origin and direction, the clamp to the
+/// grid and the last cell.
+struct Axis {
+    o: __m256d,
+    d: __m256d,
+    last: __m256d,
+    top: __m256d,
+}
+
+/// The position `o + d t` on one axis, clamped to the grid (NaN to 0), as the
+/// cell's first voxel (i32 lanes) and the fraction across it: `trilinear_sse2`'s
+/// operations.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn locate(a: &Axis, t: __m256d) -> (__m128i, __m128) {
+    let x = _mm256_add_pd(a.o, _mm256_mul_pd(a.d, t));
+    let x = _mm256_min_pd(_mm256_max_pd(x, _mm256_setzero_pd()), a.last);
+    let i = _mm256_cvttpd_epi32(_mm256_min_pd(x, a.top));
+    let f = _mm256_cvtpd_ps(_mm256_sub_pd(x, _mm256_cvtepi32_pd(i)));
+    (i, f)
+}
+
+/// The trilinear interpolation of four lanes' cells from their rows (corner pairs
+/// along x of rows y0z0, y1z0, y0z1, y1z1): along x, then y, then z, each
+/// `a + (b - a) t`, clamped to [0, 1] as `f32::clamp` does.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn interpolate(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m128) -> __m128 {
+    let lerp = |a: __m128, b: __m128, t: __m128| _mm_add_ps(a, _mm_mul_ps(_mm_sub_ps(b, a), t));
+    let x = c.map(|(a, b)| lerp(a, b, fx));
+    let y0 = lerp(x[0], x[1], fy);
+    let y1 = lerp(x[2], x[3], fy);
+    let v = lerp(y0, y1, fz);
+    // `max(0, v)` keeps v when both are zeros (so -0.0 stays) and when v is NaN,
+    // then `min(1, .)` likewise: f32::clamp's results
+    _mm_min_ps(_mm_set1_ps(1.0), _mm_max_ps(_mm_setzero_ps(), v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{normalisation_table, CellCache, Grid};
+    use super::Gather;
+    use crate::sample::Normalize;
+    use crate::volume::{Voxel, Voxels};
+
+    /// Samples along random rays (inside, across and outside the grid, with NaN and
+    /// out-of-window voxels, on grids whose last row ends the data) taken four at a
+    /// time have the bits of one sample at a time, for each voxel type the gathers
+    /// read.
+    fn along_is_one_at_a_time<T: Voxel>(voxel: impl Fn(usize) -> T, expect: Option<Gather>) {
+        for n in [[9, 8, 7], [2, 3, 2], [5, 1, 4], [3, 4, 1]] {
+            let len = n[0] * n[1] * n[2];
+            let v: Vec<T> = (0..len).map(&voxel).collect();
+            let norm = Normalize::new(-0.1, 1.2);
+            let lut = normalisation_table::<T>(norm);
+            let g = Grid::new(Voxels::from_slice(&v), n, norm, &lut);
+            if std::is_x86_feature_detected!("avx2") {
+                assert_eq!(g.gather, expect, "{n:?}");
+            }
+            let mut state = 12345u64;
+            let mut next = |lo: f64, hi: f64| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                lo + (state >> 11) as f64 / (1u64 << 53) as f64 * (hi - lo)
+            };
+            for _ in 0..300 {
+                let o = [0, 1, 2].map(|a| next(-2.0, n[a] as f64 + 1.0));
+                let d = [0, 1, 2].map(|_| next(-1.0, 1.0));
+                let count = (next(0.0, 40.0)) as usize;
+                let t0 = next(-3.0, 1.0);
+                let ts: Vec<f64> = (0..count).map(|k| t0 + 0.37 * k as f64).collect();
+                let mut out = vec![0.0f32; count];
+                g.trilinear_along(o, d, &ts, &mut out, &mut CellCache::default());
+                for (k, &t) in ts.iter().enumerate() {
+                    let p = [0, 1, 2].map(|a| o[a] + d[a] * t);
+                    assert_eq!(out[k].to_bits(), g.trilinear(p).to_bits(), "{n:?} {p:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn float32_samples_along_a_ray_are_the_single_samples() {
+        along_is_one_at_a_time(
+            |i| match i % 13 {
+                0 => f32::NAN,
+                1 => f32::INFINITY,
+                _ => ((i * 37 % 101) as f32 - 20.0) / 70.0,
+            },
+            Some(Gather::Float32),
+        );
+    }
+
+    #[test]
+    fn uint8_samples_along_a_ray_are_the_single_samples() {
+        along_is_one_at_a_time(|i| (i * 53 % 256) as u8, Some(Gather::Bits8));
+    }
+
+    #[test]
+    fn uint16_samples_along_a_ray_are_the_single_samples() {
+        along_is_one_at_a_time(|i| (i * 4099 % 65536) as u16, Some(Gather::Bits16));
+    }
+}
