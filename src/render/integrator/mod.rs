@@ -130,15 +130,7 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
     let mut batch = Batch::default();
     // takes samples `from..to`; the count taken, and whether the consumer stopped
     let mut take = |from: usize, to: usize, consumer: &mut C| -> (u64, bool) {
-        let mut stopped = None;
-        batch.sample(field, index, lattice, from, to, |i, t, v| {
-            let stop = consumer.take(i, t, v).is_break();
-            if stop {
-                stopped = Some(i);
-            }
-            stop
-        });
-        match stopped {
+        match batch.sample(field, index, lattice, from, to, consumer) {
             Some(i) => ((i + 1 - from) as u64, true),
             None => ((to - from) as u64, false),
         }
@@ -220,19 +212,19 @@ impl Default for Batch {
 }
 
 impl Batch {
-    /// Hands `visit` samples `from..to` of `lattice` in order, as `(index, t,
-    /// value)`, until it returns true (a few samples after that one may have been
+    /// Hands `consumer` samples `from..to` of `lattice` in order; the sample at
+    /// which it stopped, if it did (a few samples after that one may have been
     /// computed, never handed over).
     #[inline(always)]
-    fn sample<L: Lattice, F: Field>(
+    fn sample<L: Lattice, F: Field, C: Consumer>(
         &mut self,
         field: &F,
         ray: &IndexRay,
         lattice: &L,
         from: usize,
         to: usize,
-        mut visit: impl FnMut(usize, f64, f32) -> bool,
-    ) {
+        consumer: &mut C,
+    ) -> Option<usize> {
         let mut i = from;
         while i < to {
             let m = (to - i).min(BATCH);
@@ -247,12 +239,13 @@ impl Batch {
                 &mut self.cache,
             );
             for k in 0..m {
-                if visit(i + k, self.ts[k], self.values[k]) {
-                    return;
+                if consumer.take(i + k, self.ts[k], self.values[k]).is_break() {
+                    return Some(i + k);
                 }
             }
             i += m;
         }
+        None
     }
 }
 

@@ -349,10 +349,8 @@ fn brightest_first<F: Field, C: Ranked>(
         }
         let a = if s == 0 { 0 } else { end(s - 1) };
         let b = end(s).max(a);
-        batch.sample(field, &ray.index, march, a, b, |k, t, v| {
-            let _ = e.take(k, t, v);
-            false
-        });
+        // the extremum's consumers never stop a ray
+        let _ = batch.sample(field, &ray.index, march, a, b, e);
         taken += (b - a) as u64;
     };
     sample(e, best_span, false);
