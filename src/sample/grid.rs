@@ -130,7 +130,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
             flip: 0,
             sse2: n.iter().all(|&n| n < i32::MAX as usize),
             #[cfg(target_arch = "x86_64")]
-            gather: avx2::Gather::for_grid::<T>(n),
+            gather: avx2::Gather::for_grid::<T>(n, norm),
         }
     }
 

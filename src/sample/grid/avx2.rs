@@ -7,6 +7,7 @@
 use std::arch::x86_64::*;
 
 use super::Grid;
+use crate::sample::Normalize;
 use crate::volume::{ScalarType, Voxel};
 
 /// The voxel storage the gathers read.
@@ -14,6 +15,10 @@ use crate::volume::{ScalarType, Voxel};
 pub(super) enum Gather {
     /// float32 voxels, normalised in f64 lanes.
     Float32,
+    /// float32 voxels in the window [0, 1], where normalising is clamping: in f32
+    /// lanes, the same bits (`(v - 0) * 1` is `v`, and the clamped value converts
+    /// to f64 and back exactly).
+    Float32Unit,
     /// 8-bit voxels read as `u8` bits, normalised by the table.
     Bits8,
     /// 16-bit voxels read as `u16` bits, normalised by the table.
@@ -25,8 +30,9 @@ impl Gather {
     /// this machine has AVX2 and the grid suits it: the cell search converts to i32
     /// and the flat index multiplies 32-bit lanes, and the x axis has two voxels (so
     /// a cell's two voxels along x are adjacent in memory).
-    pub(super) fn for_grid<T: Voxel>(n: [usize; 3]) -> Option<Gather> {
+    pub(super) fn for_grid<T: Voxel>(n: [usize; 3], norm: Normalize) -> Option<Gather> {
         let kind = match T::TYPE {
+            ScalarType::Float32 if norm.lo_scale() == (0.0, 1.0) => Gather::Float32Unit,
             ScalarType::Float32 => Gather::Float32,
             // the table is indexed by the raw bits for these two (signed data is read
             // through them, see `bits_table`)
@@ -91,7 +97,11 @@ impl<T: Voxel> Grid<'_, T> {
             );
             let sample = match kind {
                 Gather::Float32 => {
-                    let c = rows.map(|r| self.row_f32(_mm256_add_epi64(base, r)));
+                    let c = rows.map(|r| self.row_f32::<false>(_mm256_add_epi64(base, r)));
+                    interpolate(c, fx, fy, fz)
+                }
+                Gather::Float32Unit => {
+                    let c = rows.map(|r| self.row_f32::<true>(_mm256_add_epi64(base, r)));
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits16 => {
@@ -125,10 +135,11 @@ impl<T: Voxel> Grid<'_, T> {
     }
 
     /// The normalised float32 voxels at flat indices `at` and `at + 1` of each lane:
-    /// (voxel `at` of lanes 0..4, voxel `at + 1` of lanes 0..4).
+    /// (voxel `at` of lanes 0..4, voxel `at + 1` of lanes 0..4); `UNIT` for the
+    /// window [0, 1] ([`Gather::Float32Unit`]).
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn row_f32(&self, at: __m256i) -> (__m128, __m128) {
+    unsafe fn row_f32<const UNIT: bool>(&self, at: __m256i) -> (__m128, __m128) {
         // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
         // voxel; each lane reads the two adjacent float32 as one 64-bit element
         let pairs = _mm256_castpd_ps(_mm256_i64gather_pd::<4>(
@@ -139,6 +150,12 @@ impl<T: Voxel> Grid<'_, T> {
         let hi = _mm256_extractf128_ps::<1>(pairs); // a2 b2 a3 b3
         let a = _mm_shuffle_ps::<0b10_00_10_00>(lo, hi);
         let b = _mm_shuffle_ps::<0b11_01_11_01>(lo, hi);
+        if UNIT {
+            // max with 0 (NaN -> 0, -0 -> 0), min with 1, as below
+            let (zero, one) = (_mm_setzero_ps(), _mm_set1_ps(1.0));
+            let clamp = |v: __m128| _mm_min_ps(_mm_max_ps(v, zero), one);
+            return (clamp(a), clamp(b));
+        }
         let (l, s) = self.norm.lo_scale();
         let (l, s) = (_mm256_set1_pd(l), _mm256_set1_pd(s));
         let (zero, one) = (_mm256_setzero_pd(), _mm256_set1_pd(1.0));
@@ -222,11 +239,14 @@ mod tests {
     /// out-of-window voxels, on grids whose last row ends the data) taken four at a
     /// time have the bits of one sample at a time, for each voxel type the gathers
     /// read.
-    fn along_is_one_at_a_time<T: Voxel>(voxel: impl Fn(usize) -> T, expect: Option<Gather>) {
+    fn along_is_one_at_a_time<T: Voxel>(
+        voxel: impl Fn(usize) -> T,
+        norm: Normalize,
+        expect: Option<Gather>,
+    ) {
         for n in [[9, 8, 7], [2, 3, 2], [5, 1, 4], [3, 4, 1]] {
             let len = n[0] * n[1] * n[2];
             let v: Vec<T> = (0..len).map(&voxel).collect();
-            let norm = Normalize::new(-0.1, 1.2);
             let lut = normalisation_table::<T>(norm);
             let g = Grid::new(Voxels::from_slice(&v), n, norm, &lut);
             if std::is_x86_feature_detected!("avx2") {
@@ -255,25 +275,38 @@ mod tests {
         }
     }
 
+    /// float32 voxels in and out of the window, NaN, infinities and negative zero.
+    fn float(i: usize) -> f32 {
+        match i % 13 {
+            0 => f32::NAN,
+            1 => f32::INFINITY,
+            2 => f32::NEG_INFINITY,
+            3 => -0.0,
+            _ => ((i * 37 % 101) as f32 - 20.0) / 70.0,
+        }
+    }
+
     #[test]
     fn float32_samples_along_a_ray_are_the_single_samples() {
-        along_is_one_at_a_time(
-            |i| match i % 13 {
-                0 => f32::NAN,
-                1 => f32::INFINITY,
-                _ => ((i * 37 % 101) as f32 - 20.0) / 70.0,
-            },
-            Some(Gather::Float32),
-        );
+        let norm = Normalize::new(-0.1, 1.2);
+        along_is_one_at_a_time(float, norm, Some(Gather::Float32));
+    }
+
+    #[test]
+    fn float32_samples_in_the_unit_window_are_the_single_samples() {
+        let norm = Normalize::new(0.0, 1.0);
+        along_is_one_at_a_time(float, norm, Some(Gather::Float32Unit));
     }
 
     #[test]
     fn uint8_samples_along_a_ray_are_the_single_samples() {
-        along_is_one_at_a_time(|i| (i * 53 % 256) as u8, Some(Gather::Bits8));
+        let norm = Normalize::new(-0.1, 250.0);
+        along_is_one_at_a_time(|i| (i * 53 % 256) as u8, norm, Some(Gather::Bits8));
     }
 
     #[test]
     fn uint16_samples_along_a_ray_are_the_single_samples() {
-        along_is_one_at_a_time(|i| (i * 4099 % 65536) as u16, Some(Gather::Bits16));
+        let norm = Normalize::new(100.0, 60000.0);
+        along_is_one_at_a_time(|i| (i * 4099 % 65536) as u16, norm, Some(Gather::Bits16));
     }
 }
