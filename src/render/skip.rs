@@ -276,17 +276,24 @@ impl Iterator for Walk<'_> {
         if self.done {
             return None;
         }
-        // one element at a time: a copy of the array would be a wide load over the
-        // narrow store of the last step's crossing, which the store buffer cannot
-        // forward
+        // the axis whose plane comes first: a constant index in each branch, so that
+        // the walk's state can live in registers rather than in an indexed array
         let (x, y, z) = (self.t_next[0], self.t_next[1], self.t_next[2]);
-        let (a, next) = if x <= y && x <= z {
-            (0, x)
+        if x <= y && x <= z {
+            self.advance::<0>(x)
         } else if y <= z {
-            (1, y)
+            self.advance::<1>(y)
         } else {
-            (2, z)
-        };
+            self.advance::<2>(z)
+        }
+    }
+}
+
+impl Walk<'_> {
+    /// The span up to `next`, where the ray crosses a plane of axis `A`, and the step
+    /// into the next cell along `A`.
+    #[inline(always)]
+    fn advance<const A: usize>(&mut self, next: f64) -> Option<Span> {
         let t0 = self.t;
         // a NaN crossing (not `< t_exit`) ends the walk too
         if next.partial_cmp(&self.t_exit) != Some(std::cmp::Ordering::Less) {
@@ -306,23 +313,24 @@ impl Iterator for Walk<'_> {
             last: false,
         };
         self.t = t1;
-        let c = self.cell[a] + self.step[a];
-        self.cell[a] = c;
+        let step = self.step[A];
+        let c = self.cell[A] + step;
+        self.cell[A] = c;
         let dims = self.grid.dims;
         // stepping from outside the grid into it, or inside it, moves the flat index
-        if c >= 0 && c < dims[a] as i64 {
-            let inside_before = c - self.step[a] >= 0 && c - self.step[a] < dims[a] as i64;
+        if c >= 0 && c < dims[A] as i64 {
+            let inside_before = c - step >= 0 && c - step < dims[A] as i64;
             if inside_before {
-                let stride = [1, dims[0], dims[0] * dims[1]][a];
-                self.flat = if self.step[a] > 0 {
+                let stride = [1, dims[0], dims[0] * dims[1]][A];
+                self.flat = if step > 0 {
                     self.flat + stride
                 } else {
                     self.flat - stride
                 };
             }
         }
-        let plane = if self.step[a] > 0 { c + 1 } else { c };
-        self.t_next[a] = (plane as f64 * MACROCELL as f64 - self.o[a]) * self.inv[a];
+        let plane = if step > 0 { c + 1 } else { c };
+        self.t_next[A] = (plane as f64 * MACROCELL as f64 - self.o[A]) * self.inv[A];
         Some(span)
     }
 }
