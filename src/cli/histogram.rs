@@ -7,7 +7,6 @@ use std::process::ExitCode;
 use anyhow::{anyhow, Context};
 
 use volcast::histogram::{self, plot, Options, Overlays};
-use volcast::output::overlay::short_number;
 use volcast::volume::{Limits, VolumeSource};
 
 use super::args::HistogramArgs;
@@ -47,7 +46,7 @@ pub fn run(a: HistogramArgs) -> anyhow::Result<ExitCode> {
         Some(s) => format!("{name} (scene {})", file_name(&s.path.to_string_lossy())),
         None => name.clone(),
     };
-    let [w0, w1] = h.window.map(|x| short_number(x, 4));
+    let [w0, w1] = h.window.map(plot::number);
     let value = plot::value_plot(
         &h,
         &overlays,
@@ -77,12 +76,12 @@ pub fn run(a: HistogramArgs) -> anyhow::Result<ExitCode> {
             .with_context(|| format!("writing {}", path.display()))?;
         written.push(path.display().to_string());
     }
-    let [v0, v1] = h.value_range.map(|x| short_number(x, 4));
+    let [v0, v1] = h.value_range.map(plot::number);
     let mut text = format!(
         "volcast: {} voxels of {name} counted: values {v0} .. {v1} (data units, {} bins), gradient magnitudes 0 .. {} (normalised value per voxel of the smallest spacing, window [{w0}, {w1}], {} differences, {} bins)\n",
         h.counted,
         h.bins(),
-        short_number(h.gradient_range[1], 4),
+        plot::number(h.gradient_range[1]),
         h.gradient.name(),
         h.gradient_bins,
     );

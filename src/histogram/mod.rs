@@ -121,6 +121,18 @@ pub enum HistogramError {
         /// The volume's sizes.
         sizes: [usize; 3],
     },
+    /// The values, or the gradient magnitudes, span more than an `f64` can measure.
+    #[error("the {what} of {volume} span [{lo:e}, {hi:e}], wider than can be binned (the width overflows)")]
+    Span {
+        /// "values" or "gradient magnitudes".
+        what: &'static str,
+        /// The volume.
+        volume: String,
+        /// The smallest.
+        lo: f64,
+        /// The largest.
+        hi: f64,
+    },
     /// The volume's axes do not span 3D space (no gradient can be expressed in
     /// world units).
     #[error("the volume {0} has degenerate axes (spacings or directions without an inverse)")]
@@ -386,11 +398,27 @@ fn count<T: Voxel>(
         (lo, hi) = (ranges.min - 0.5, ranges.max + 0.5);
     }
     let value_range = [lo, hi];
+    if !(hi - lo).is_finite() {
+        return Err(HistogramError::Span {
+            what: "values",
+            volume: header.source.clone(),
+            lo: ranges.min,
+            hi: ranges.max,
+        });
+    }
     let top = match opts.gradient_max {
         Some(g) => g,
         None if ranges.largest_gradient > 0.0 => ranges.largest_gradient,
         None => 1.0,
     };
+    if !top.is_finite() {
+        return Err(HistogramError::Span {
+            what: "gradient magnitudes",
+            volume: header.source.clone(),
+            lo: 0.0,
+            hi: top,
+        });
+    }
     let gradient_range = [0.0, top];
     let (bins, gbins) = (opts.bins, opts.gradient_bins);
     let empty = || (vec![0u64; bins], vec![0u64; bins * gbins], 0.0f64);
@@ -448,6 +476,15 @@ mod tests {
             },
             data: VolumeData::from_f64s(ty, values),
         }
+    }
+
+    fn vol_ok() -> Volume {
+        volume(
+            ScalarType::Uint8,
+            [2, 2, 2],
+            [1.0; 3],
+            &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0],
+        )
     }
 
     /// A field with some structure in every direction.
@@ -620,6 +657,14 @@ mod tests {
             let e = compute(&vol, norm, &opts).unwrap_err().to_string();
             assert!(e.contains(needle), "{e}");
         }
+        // a range whose width overflows is refused, not binned (nor plotted)
+        let wide = volume(ScalarType::Float64, [2, 1, 1], [1.0; 3], &[-1e308, 1e308]);
+        let e = compute(&wide, Normalize::new(-1e308, 1e308), &Options::default()).unwrap_err();
+        assert!(e.to_string().contains("wider than can be binned"), "{e}");
+        let mut h = compute(&vol_ok(), norm, &Options::default()).unwrap();
+        h.value_range = [-1e308, 1e308];
+        let e = plot::value_plot(&h, &Overlays::default(), "t").unwrap_err();
+        assert!(e.to_string().contains("value axis"), "{e}");
         let mut flat = volume(ScalarType::Float32, [2, 1, 1], [1.0; 3], &[1.0, 2.0]);
         flat.header.geometry = Geometry::from_spacing([1.0, 0.0, 1.0]);
         let e = compute(&flat, norm, &Options::default()).unwrap_err();

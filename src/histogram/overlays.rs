@@ -99,7 +99,6 @@ impl Overlays {
     /// run's normalisation `norm` of stored values and the volume's `rescale`.
     pub fn of_scene(scene: &Scene, norm: Normalize, rescale: Rescale) -> Overlays {
         let data = |t: f64| data_value(norm, rescale, t);
-        let short = |x: f64| crate::output::overlay::short_number(x, 4);
         let mut o = Overlays {
             window: Some([data(0.0), data(1.0)]),
             ..Overlays::default()
@@ -108,7 +107,7 @@ impl Overlays {
             let name = &pass.name;
             let mut mark = |what: &str, t: f64| {
                 o.markers.push(Marker {
-                    label: format!("{name}: {what} {}", short(data(t))),
+                    label: format!("{name}: {what} {}", super::plot::number(data(t))),
                     at: data(t),
                 })
             };

@@ -171,15 +171,20 @@ impl Canvas {
     }
 }
 
-/// A tick label: a few significant decimals, or scientific notation for tiny and
-/// huge numbers.
-fn tick(x: &f64) -> String {
+/// A number as the plots and messages show it: up to 4 decimals, or scientific
+/// notation (4 significant digits) for tiny and huge numbers.
+pub fn number(x: f64) -> String {
     let a = x.abs();
     if a == 0.0 || (1e-3..1e6).contains(&a) {
-        short_number(*x, 3)
+        short_number(x, 4)
     } else {
-        format!("{x:.1e}")
+        format!("{x:.3e}")
     }
+}
+
+/// A tick label.
+fn tick(x: &f64) -> String {
+    number(*x)
 }
 
 /// A count label on a log axis.
@@ -191,9 +196,23 @@ fn count_tick(y: &f64) -> String {
     }
 }
 
+/// An error unless both axes of `h` are finite, non-empty ranges (plotters cannot
+/// place ticks on others).
+fn check_axes(h: &Histograms) -> Result<(), PlotError> {
+    for (name, [lo, hi]) in [("value", h.value_range), ("gradient", h.gradient_range)] {
+        if !((hi - lo).is_finite() && hi > lo) {
+            return Err(PlotError(format!(
+                "the {name} axis [{lo}, {hi}] is not a finite, non-empty range"
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// The value histogram of `h`, with the window, iso values, thresholds and 1D
 /// transfer functions of `overlays`, under `title`.
 pub fn value_plot(h: &Histograms, overlays: &Overlays, title: &str) -> Result<Plot, PlotError> {
+    check_axes(h)?;
     plotting::register_font().map_err(PlotError)?;
     let mut canvas = Canvas::new(WIDTH, HEIGHT_1D);
     let most = h.counts.iter().copied().max().unwrap_or(0).max(1);
@@ -252,6 +271,7 @@ pub fn value_plot(h: &Histograms, overlays: &Overlays, title: &str) -> Result<Pl
 /// The 2D histogram of `h`, with the window, iso values, thresholds, 2D
 /// transfer-function widgets and their `gradient_max` of `overlays`, under `title`.
 pub fn gradient_plot(h: &Histograms, overlays: &Overlays, title: &str) -> Result<Plot, PlotError> {
+    check_axes(h)?;
     plotting::register_font().map_err(PlotError)?;
     let mut canvas = Canvas::new(WIDTH, HEIGHT_2D);
     let most = h.counts_2d.iter().copied().max().unwrap_or(0).max(1);
