@@ -29,6 +29,15 @@ cp "$tmp/colormap_engine/mip_hot_0000.png"         docs/images/colormap_hot.png
 cp "$tmp/colormap_engine/xray_bone_0000.png"       docs/images/colormap_bone.png
 cp "$tmp/colormap_engine/depth_viridis_0000.png"   docs/images/colormap_viridis.png
 cp "$tmp/preset_mr_head/mr_default_0000.png"       docs/images/preset_mr_default.png
+# a NIfTI input (README "Input formats")
+"$VOLCAST" render --quiet --frames 0 --out "$tmp/ct_head_nifti" scenes/ct_head_nifti.toml
+cp "$tmp/ct_head_nifti/skin_0000.png"              docs/images/nifti_skin.png
+cp "$tmp/ct_head_nifti/mip_0000.png"               docs/images/nifti_mip.png
+# the histograms for transfer-function design (README "Histograms for transfer-function design")
+"$VOLCAST" histogram scenes/transfer_2d.toml --out "$tmp/histogram_2d" > /dev/null
+cp "$tmp/histogram_2d/histogram2d.png"             docs/images/histogram2d_engine.png
+"$VOLCAST" histogram scenes/composite_engine_bone.toml --out "$tmp/histogram_bone" > /dev/null
+cp "$tmp/histogram_bone/histogram.png"             docs/images/histogram_engine_bone.png
 # the overlays at a larger size (frame 3)
 "$VOLCAST" render --quiet --frames 3 --size 384x384 --out "$tmp/overlays" scenes/colormap_engine.toml
 cp "$tmp/overlays/depth_viridis_0003.png"          docs/images/overlays.png

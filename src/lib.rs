@@ -15,6 +15,7 @@
 pub mod batch;
 pub mod bench;
 pub mod error;
+pub mod histogram;
 pub mod output;
 pub mod plan;
 pub mod render;

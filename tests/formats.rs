@@ -604,3 +604,67 @@ fn dicom_series_problems_are_named() {
         "{err}"
     );
 }
+
+/// The shipped NIfTI copy of VTK's CT head (`data/make_ct_head_nifti.py`, nibabel):
+/// the voxels of the shipped NRRD, its geometry to float32 precision (NIfTI stores
+/// float32: the spacing 3.2 becomes 3.200000047683716), and its example scene
+/// `scenes/ct_head_nifti.toml` renders the bytes of the same scene on a NRRD of those
+/// voxels with those spacings.
+#[test]
+fn the_shipped_nifti_head_is_the_shipped_nrrd_head() {
+    let load = |p: &Path| {
+        VolumeSource::from_path(p)
+            .unwrap()
+            .load(&Limits::default())
+            .unwrap()
+    };
+    let nifti_path = root().join("data/ct_head_vtk_quarter.nii.gz");
+    let (nii, nrrd) = (
+        load(&nifti_path),
+        load(&root().join("data/ct_head_vtk_quarter.nrrd")),
+    );
+    assert_eq!(nii.header.sizes, [64, 64, 93]);
+    assert_eq!(nii.header.sizes, nrrd.header.sizes);
+    assert_eq!(nii.header.scalar_type, nrrd.header.scalar_type);
+    assert!(nii.data == nrrd.data, "the voxels differ");
+    let (a, b) = (nii.header.geometry, nrrd.header.geometry);
+    assert_eq!(a.origin, b.origin);
+    for k in 0..3 {
+        let d = (a.axes[k] - b.axes[k]).length();
+        assert!(
+            d <= 1e-7 * b.axes[k].length(),
+            "axis {k}: {} vs {}",
+            a.axes[k],
+            b.axes[k]
+        );
+    }
+    // the NRRD's voxels with the NIfTI's float32 spacings, as raw little-endian int16
+    let tmp = tempfile::tempdir().unwrap();
+    let sp = a.spacings();
+    let mut file = format!(
+        "NRRD0004\ntype: int16\ndimension: 3\nsizes: 64 64 93\nspacings: {:?} {:?} {:?}\nendian: little\nencoding: raw\n\n",
+        sp[0], sp[1], sp[2]
+    )
+    .into_bytes();
+    for i in 0..nrrd.data.len() {
+        file.extend_from_slice(&(nrrd.data.get_f64(i) as i16).to_le_bytes());
+    }
+    let same = tmp.path().join("same.nrrd");
+    std::fs::write(&same, file).unwrap();
+    let scene = std::fs::read_to_string(root().join("scenes/ct_head_nifti.toml")).unwrap();
+    let on = |path: &Path| {
+        let text = scene
+            .replace(
+                "\"../data/ct_head_vtk_quarter.nii.gz\"",
+                &format!("{:?}", path.display().to_string()),
+            )
+            .replace("size = [256, 256]", "size = [40, 40]\nformat = \"nrrd\"");
+        assert!(text.contains("format = \"nrrd\"") && !text.contains("../data"));
+        rendered_nrrds(&text, &["--frames", "0"])
+    };
+    let (x, y) = (on(&nifti_path), on(&same));
+    assert_eq!(x.len(), 2);
+    for ((file, p), (_, q)) in x.iter().zip(&y) {
+        assert!(p == q, "{file} differs");
+    }
+}

@@ -18,6 +18,7 @@ mod formats;
 mod fuzz;
 mod geometry;
 mod hard_cases;
+mod histogram;
 mod keyframes;
 mod mapping;
 mod memory;

@@ -5,14 +5,12 @@
 //! encoded as PNG by the `image` crate.
 
 use std::collections::BTreeMap;
-use std::io::Cursor;
-use std::sync::Once;
 
 use plotters::prelude::*;
 
 use super::{BenchError, Report, Row};
 
-use crate::output::overlay::FONT;
+use crate::output::plotting;
 
 const WIDTH: u32 = 1600;
 const HEIGHT: u32 = 900;
@@ -98,13 +96,7 @@ fn series_label(r: &Row) -> String {
 
 /// Draws the plot and returns the PNG bytes.
 pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
-    static REGISTER: Once = Once::new();
-    let mut registered = Ok(());
-    REGISTER.call_once(|| {
-        registered = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
-            .map_err(|_| BenchError::Plot("the embedded font is not a valid TrueType file".into()));
-    });
-    registered?;
+    plotting::register_font().map_err(BenchError::Plot)?;
     let mut buf = vec![255u8; (WIDTH * HEIGHT * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
@@ -189,12 +181,7 @@ pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
         }
         root.present().map_err(plot_err)?;
     }
-    let img = image::RgbImage::from_raw(WIDTH, HEIGHT, buf)
-        .ok_or_else(|| BenchError::Plot("the plot buffer has the wrong size".into()))?;
-    let mut png = Vec::new();
-    img.write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
-        .map_err(plot_err)?;
-    Ok(png)
+    plotting::encode_rgb_png(WIDTH, HEIGHT, buf).map_err(BenchError::Plot)
 }
 
 #[cfg(test)]

@@ -21,6 +21,10 @@ pub enum Command {
     Check(CheckArgs),
     /// Describe a volume (a .nrrd/.nhdr file, or the volume of a scene .toml).
     Info(InfoArgs),
+    /// Write the value histogram and the value x gradient-magnitude histogram of a
+    /// volume (or of a scene's volume, with its window, iso values, thresholds and
+    /// transfer functions drawn over them) as PNG plots and CSV files.
+    Histogram(HistogramArgs),
     /// Measure the renderer: `bench accuracy` reports speed against error.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -184,6 +188,37 @@ pub struct InfoArgs {
     /// Largest voxel buffer to allocate, e.g. `8G`, `512M` (mapped volumes do not count).
     #[arg(long, value_name = "BYTES", value_parser = parse_bytes)]
     pub max_memory: Option<u64>,
+}
+
+#[derive(Debug, Args)]
+pub struct HistogramArgs {
+    /// A volume (.nrrd/.nhdr, .nii/.nii.gz, .mha/.mhd file, or a DICOM folder), or a
+    /// scene .toml: its volume, window, crop and gradient estimator, with its iso
+    /// values, thresholds and transfer functions drawn over the plots.
+    pub volume: PathBuf,
+    /// Folder for histogram.png, histogram2d.png, histogram.csv and
+    /// histogram2d.csv (created if needed; the files are replaced).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Bins along the value axis, from 1 to 4096.
+    #[arg(long, value_name = "N", default_value_t = 256,
+          value_parser = clap::value_parser!(u16).range(1..=4096))]
+    pub bins: u16,
+    /// Bins along the gradient-magnitude axis of the 2D histogram, from 1 to 1024.
+    #[arg(long, value_name = "N", default_value_t = 128,
+          value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub gradient_bins: u16,
+    /// Top of the gradient-magnitude axis, in normalised value per voxel (larger
+    /// magnitudes count in the top bin); default: the largest in the data.
+    #[arg(long, value_name = "G", value_parser = parse_positive, allow_negative_numbers = true)]
+    pub gradient_max: Option<f64>,
+}
+
+fn parse_positive(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(format!("expected a number greater than 0, got `{s}`")),
+    }
 }
 
 fn parse_frames(s: &str) -> Result<Range<usize>, String> {

@@ -123,14 +123,16 @@ fn finite_or_null(x: f64) -> serde_json::Value {
     }
 }
 
+/// Whether `path` names a scene file (`.toml`) rather than a volume.
+pub(super) fn is_scene(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+}
+
 /// The volume a path names: a volume file (NRRD, NIfTI, MetaImage), or the `[volume]`
 /// of a scene file.
 fn source_of(path: &Path) -> anyhow::Result<VolumeSource> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    if ext == "toml" {
+    if is_scene(path) {
         Ok(volcast::scene::load(path)?.volume.source)
     } else {
         Ok(VolumeSource::from_path(path)?)

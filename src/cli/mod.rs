@@ -1,9 +1,10 @@
-//! Command-line parsing and the three subcommands. Library code never prints;
+//! Command-line parsing and the subcommands. Library code never prints;
 //! everything the user sees on the terminal is printed here.
 
 mod args;
 mod bench;
 mod check;
+mod histogram;
 mod info;
 mod render;
 
@@ -48,6 +49,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Render(a) => render::run(a),
         Command::Check(a) => check::run(a),
         Command::Info(a) => info::run(a),
+        Command::Histogram(a) => histogram::run(a),
         Command::Bench(args::BenchCommand::Accuracy(a)) => bench::accuracy(a),
         Command::Bench(args::BenchCommand::Speed(a)) => bench::speed(a),
     }

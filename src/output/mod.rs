@@ -8,6 +8,7 @@ pub mod display;
 pub mod encode;
 pub mod manifest;
 pub mod overlay;
+pub(crate) mod plotting;
 pub mod stereo;
 pub mod viewer;
 pub mod write;

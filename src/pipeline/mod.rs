@@ -20,7 +20,7 @@ mod resume;
 mod write;
 
 pub use fit::threshold as fit_threshold;
-pub use prepare::value_window;
+pub use prepare::{data_window, value_window};
 pub use resume::completed_images;
 
 use frames::render_passes;

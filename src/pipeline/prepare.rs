@@ -11,17 +11,23 @@ pub fn value_window(scene: &Scene, volume: &Volume) -> Result<Normalize, Error> 
         let [lo, hi] = rescale.stored_window(window);
         return Ok(Normalize::new(lo, hi));
     }
+    data_window(volume).ok_or_else(|| Error::Plan {
+        scene: scene.path.clone(),
+        message: format!(
+            "the volume {} has no finite values to take a window from",
+            volume.header.source
+        ),
+    })
+}
+
+/// The normalisation of the data's finite range, in its physical values (what a
+/// scene without `[volume] window` renders with); `None` when no value is finite.
+pub fn data_window(volume: &Volume) -> Option<Normalize> {
     let stats = Stats::of(&volume.data);
     if stats.finite == 0 {
-        return Err(Error::Plan {
-            scene: scene.path.clone(),
-            message: format!(
-                "the volume {} has no finite values to take a window from",
-                volume.header.source
-            ),
-        });
+        return None;
     }
     let w = Window::from_range(stats.min, stats.max);
-    let [lo, hi] = rescale.stored_range_window([w.lo, w.hi]);
-    Ok(Normalize::new(lo, hi))
+    let [lo, hi] = volume.header.rescale.stored_range_window([w.lo, w.hi]);
+    Some(Normalize::new(lo, hi))
 }
