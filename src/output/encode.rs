@@ -1,9 +1,5 @@
 //! Encoders: 8- and 16-bit PNG from display films, float32 NRRD from raw films.
 
-use std::io::Cursor;
-
-use image::{ImageBuffer, ImageFormat, Luma, Rgb};
-
 use crate::render::Film;
 use crate::volume::nrrd::{self, NrrdHeader};
 use crate::volume::{ScalarType, VolumeData, VolumeError};
@@ -12,8 +8,8 @@ use crate::volume::{ScalarType, VolumeData, VolumeError};
 #[derive(Debug, thiserror::Error)]
 pub enum EncodeError {
     /// The encoder failed.
-    #[error(transparent)]
-    Image(#[from] image::ImageError),
+    #[error("PNG encoder: {0}")]
+    Png(#[from] png::EncodingError),
     /// A buffer could not be allocated.
     #[error(transparent)]
     Memory(#[from] super::AllocError),
@@ -35,39 +31,60 @@ fn quantised<T>(film: &Film, q: impl Fn(&f32) -> T) -> Result<Vec<T>, super::All
 
 /// PNG bytes of a display film (1 or 3 channels, values in [0, 1]) at 8 or 16 bits.
 pub fn png(film: &Film, sixteen: bool) -> Result<Vec<u8>, EncodeError> {
-    let (w, h) = (film.width as u32, film.height as u32);
+    let color = match film.channels {
+        1 => png::ColorType::Grayscale,
+        3 => png::ColorType::Rgb,
+        c => return Err(EncodeError::Channels(c)),
+    };
+    // the samples, 16-bit ones big-endian as PNG stores them
+    let samples = if sixteen {
+        let q16 = |v: &f32| (v.clamp(0.0, 1.0) * 65535.0).round() as u16;
+        let words = quantised(film, q16)?;
+        let mut b = Vec::new();
+        b.try_reserve_exact(2 * words.len())
+            .map_err(|_| super::AllocError {
+                bytes: 2 * words.len() as u64,
+            })?;
+        b.extend(words.iter().flat_map(|w| w.to_be_bytes()));
+        b
+    } else {
+        quantised(film, |v: &f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8)?
+    };
+    encode_png(
+        film.width as u32,
+        film.height as u32,
+        color,
+        if sixteen {
+            png::BitDepth::Sixteen
+        } else {
+            png::BitDepth::Eight
+        },
+        &samples,
+    )
+}
+
+/// The PNG file of `width x height` pixels of `samples` (row by row, in PNG's
+/// sample order).
+pub(crate) fn encode_png(
+    width: u32,
+    height: u32,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    samples: &[u8],
+) -> Result<Vec<u8>, EncodeError> {
     let mut bytes = Vec::new();
     // room for the file, about the size of the samples at worst
-    let guess = film.data.len().saturating_mul(if sixteen { 2 } else { 1 }) / 2 + 1024;
+    let guess = samples.len() / 2 + 1024;
     bytes.try_reserve(guess).map_err(|_| super::AllocError {
         bytes: guess as u64,
     })?;
-    let mut out = Cursor::new(&mut bytes);
-    let q8 = |v: &f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
-    let q16 = |v: &f32| (v.clamp(0.0, 1.0) * 65535.0).round() as u16;
-    let bad = || unreachable_size();
-    match (film.channels, sixteen) {
-        (1, false) => ImageBuffer::<Luma<u8>, _>::from_raw(w, h, quantised(film, q8)?)
-            .ok_or_else(bad)?
-            .write_to(&mut out, ImageFormat::Png)?,
-        (1, true) => ImageBuffer::<Luma<u16>, _>::from_raw(w, h, quantised(film, q16)?)
-            .ok_or_else(bad)?
-            .write_to(&mut out, ImageFormat::Png)?,
-        (3, false) => ImageBuffer::<Rgb<u8>, _>::from_raw(w, h, quantised(film, q8)?)
-            .ok_or_else(bad)?
-            .write_to(&mut out, ImageFormat::Png)?,
-        (3, true) => ImageBuffer::<Rgb<u16>, _>::from_raw(w, h, quantised(film, q16)?)
-            .ok_or_else(bad)?
-            .write_to(&mut out, ImageFormat::Png)?,
-        (c, _) => return Err(EncodeError::Channels(c)),
-    }
+    let mut encoder = png::Encoder::new(&mut bytes, width, height);
+    encoder.set_color(color);
+    encoder.set_depth(depth);
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(samples)?;
+    writer.finish()?;
     Ok(bytes)
-}
-
-fn unreachable_size() -> image::ImageError {
-    image::ImageError::Parameter(image::error::ParameterError::from_kind(
-        image::error::ParameterErrorKind::DimensionMismatch,
-    ))
 }
 
 /// NRRD bytes of a raw film: float32, sizes `W H` (scalar) or `C W H` (components
@@ -86,4 +103,73 @@ pub fn nrrd(film: &Film, key_values: &[(String, String)]) -> Result<Vec<u8>, Vol
     let mut header = header;
     header.key_values.extend(key_values.iter().cloned());
     nrrd::encode(&header, &VolumeData::F32(film.data.clone()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The PNG's header fields and its samples (16-bit ones as numbers), decoded.
+    fn decode(bytes: &[u8]) -> (png::ColorType, png::BitDepth, u32, u32, Vec<u32>) {
+        let mut reader = png::Decoder::new(std::io::Cursor::new(bytes))
+            .read_info()
+            .unwrap();
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        let samples = match info.bit_depth {
+            png::BitDepth::Sixteen => buf[..info.buffer_size()]
+                .chunks(2)
+                .map(|b| u32::from(u16::from_be_bytes([b[0], b[1]])))
+                .collect(),
+            _ => buf[..info.buffer_size()]
+                .iter()
+                .map(|&b| u32::from(b))
+                .collect(),
+        };
+        (
+            info.color_type,
+            info.bit_depth,
+            info.width,
+            info.height,
+            samples,
+        )
+    }
+
+    /// Grey and RGB films at 8 and 16 bits decode to their values quantised by
+    /// `round(clamp(v) * max)` (in f32), in row order, with out-of-range values
+    /// clamped; 16-bit samples come out in PNG's big-endian order.
+    #[test]
+    fn png_samples_are_the_quantised_film() {
+        let values = [
+            0.0, 0.25, 0.5, 1.0, -0.5, 1.5, 0.001, 0.999, 0.7, 0.3, 0.6, 0.1,
+        ];
+        for (channels, color) in [(1, png::ColorType::Grayscale), (3, png::ColorType::Rgb)] {
+            let (width, height) = (12 / channels / 2, 2);
+            let film = Film {
+                width,
+                height,
+                channels,
+                data: values.to_vec(),
+            };
+            for (sixteen, max, depth) in [
+                (false, 255.0f32, png::BitDepth::Eight),
+                (true, 65535.0, png::BitDepth::Sixteen),
+            ] {
+                let (c, d, w, h, samples) = decode(&png(&film, sixteen).unwrap());
+                assert_eq!((c, d, w, h), (color, depth, width as u32, height as u32));
+                let expect: Vec<u32> = values
+                    .iter()
+                    .map(|v: &f32| (v.clamp(0.0, 1.0) * max).round() as u32)
+                    .collect();
+                assert_eq!(samples, expect, "{channels} channels, 16-bit {sixteen}");
+            }
+        }
+        let two = Film {
+            width: 1,
+            height: 1,
+            channels: 2,
+            data: vec![0.0; 2],
+        };
+        assert!(matches!(png(&two, false), Err(EncodeError::Channels(2))));
+    }
 }

@@ -2,7 +2,6 @@
 //! (registered once as plotters' "sans-serif", so no system font library is
 //! needed; `assets/fonts/README.md`) and the PNG encoding of an RGB buffer.
 
-use std::io::Cursor;
 use std::sync::OnceLock;
 
 use super::overlay::FONT;
@@ -21,10 +20,15 @@ pub(crate) fn register_font() -> Result<(), String> {
 
 /// The PNG file of an RGB buffer of `width x height` pixels (row by row).
 pub(crate) fn encode_rgb_png(width: u32, height: u32, rgb: Vec<u8>) -> Result<Vec<u8>, String> {
-    let img = image::RgbImage::from_raw(width, height, rgb)
-        .ok_or_else(|| "the plot buffer has the wrong size".to_string())?;
-    let mut png = Vec::new();
-    img.write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
-        .map_err(|e| e.to_string())?;
-    Ok(png)
+    if rgb.len() as u64 != 3 * u64::from(width) * u64::from(height) {
+        return Err("the plot buffer has the wrong size".to_string());
+    }
+    super::encode::encode_png(
+        width,
+        height,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &rgb,
+    )
+    .map_err(|e| e.to_string())
 }
