@@ -18,14 +18,18 @@ pub enum EncodeError {
     Channels(usize),
 }
 
-/// The film's samples quantised by `q`, in a fallibly allocated buffer.
-fn quantised<T>(film: &Film, q: impl Fn(&f32) -> T) -> Result<Vec<T>, super::AllocError> {
+/// The film's samples quantised by `q` to `N` bytes each, in a fallibly allocated
+/// buffer.
+fn quantised<const N: usize>(
+    film: &Film,
+    q: impl Fn(&f32) -> [u8; N],
+) -> Result<Vec<u8>, super::AllocError> {
+    let bytes = film.data.len().saturating_mul(N);
     let mut v = Vec::new();
-    v.try_reserve_exact(film.data.len())
-        .map_err(|_| super::AllocError {
-            bytes: (film.data.len() as u64).saturating_mul(std::mem::size_of::<T>() as u64),
-        })?;
-    v.extend(film.data.iter().map(q));
+    v.try_reserve_exact(bytes).map_err(|_| super::AllocError {
+        bytes: bytes as u64,
+    })?;
+    v.extend(film.data.iter().flat_map(q));
     Ok(v)
 }
 
@@ -38,17 +42,11 @@ pub fn png(film: &Film, sixteen: bool) -> Result<Vec<u8>, EncodeError> {
     };
     // the samples, 16-bit ones big-endian as PNG stores them
     let samples = if sixteen {
-        let q16 = |v: &f32| (v.clamp(0.0, 1.0) * 65535.0).round() as u16;
-        let words = quantised(film, q16)?;
-        let mut b = Vec::new();
-        b.try_reserve_exact(2 * words.len())
-            .map_err(|_| super::AllocError {
-                bytes: 2 * words.len() as u64,
-            })?;
-        b.extend(words.iter().flat_map(|w| w.to_be_bytes()));
-        b
+        quantised(film, |v| {
+            ((v.clamp(0.0, 1.0) * 65535.0).round() as u16).to_be_bytes()
+        })?
     } else {
-        quantised(film, |v: &f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8)?
+        quantised(film, |v| [(v.clamp(0.0, 1.0) * 255.0).round() as u8])?
     };
     encode_png(
         film.width as u32,
