@@ -28,7 +28,7 @@ use crate::render::march::{March, Midpoints};
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;
 use crate::shade::Shader;
-use crate::transfer::{correct_opacity, Preintegrated, Table1D, Table2D};
+use crate::transfer::{clamp_unit, correct_opacity, Preintegrated, Table1D, Table2D};
 
 /// A transfer-function table.
 #[derive(Clone, Debug)]
@@ -85,6 +85,12 @@ pub struct Composite {
     /// Per macrocell of the pass's grid: true where the transfer function is
     /// transparent over the cell's values.
     transparent: Vec<bool>,
+    /// Entries along the value axis, less one: a value `v` is looked up at
+    /// position `clamp_unit(v) * value_last` of the table.
+    value_last: f32,
+    /// The last table position up to which every lookup is transparent (-1 when
+    /// the first entry is not): see [`Composite::clear`].
+    clear_up_to: f32,
 }
 
 impl Composite {
@@ -101,7 +107,14 @@ impl Composite {
         voxel_length: f64,
         preintegrated: Option<Preintegrated>,
     ) -> Composite {
+        // entries 0..z are transparent at every gradient magnitude: a lookup between
+        // two of them interpolates zeros, and one at position z - 1 exactly reads
+        // entry z - 1 with weight 1 (and entry z with weight 0)
+        let opaque = table.opaque_entries();
+        let z = opaque.iter().position(|&o| o).unwrap_or(opaque.len());
         Composite {
+            value_last: (opaque.len() - 1) as f32,
+            clear_up_to: z as f32 - 1.0,
             full_step: table.corrected(dt / reference_step),
             table,
             shader,
@@ -147,6 +160,18 @@ impl Composite {
             + self.full_step.byte_size()
             + self.preintegrated.as_ref().map_or(0, |p| p.byte_size())
             + self.transparent.len()
+    }
+
+    /// Whether the transfer function is transparent at value `v` (whatever the
+    /// gradient magnitude), found without a lookup: true only where both tables'
+    /// lookups give an opacity of exactly zero (correcting an opacity of zero for a
+    /// step keeps it zero). Most samples a composite takes in a cell that is not
+    /// passed over are clear, so this test saves their lookup (and the gradient of
+    /// a 2D table).
+    #[inline(always)]
+    fn clear(&self, v: f32) -> bool {
+        // the position as the tables' lookups compute it
+        clamp_unit(v) * self.value_last <= self.clear_up_to
     }
 
     /// RGBA of value `v` at `p()` (index space; asked for the gradient magnitude of
@@ -243,6 +268,9 @@ impl<F: Field> Consumer for Midpoint<'_, F> {
     #[inline(always)]
     fn take(&mut self, i: usize, t: f64, v: f32) -> ControlFlow<()> {
         let p = self.pass;
+        if p.clear(v) {
+            return ControlFlow::Continue(());
+        }
         let full = self.march.is_full_step(i + 1);
         let pos = || self.ray.index.at(t);
         let (rgba, grad, a) = if full {
@@ -415,6 +443,104 @@ impl FrontToBack {
             [c.x, c.y, c.z, self.alpha as f32]
         } else {
             [0.0; 4]
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transfer::{Interpolation, Transfer1D, Transfer2D, Widget, WidgetShape};
+
+    /// Values around every table position: the positions themselves, a few ulps
+    /// either side, points between them, and values outside [0, 1] and NaN.
+    fn values(entries: usize) -> Vec<f32> {
+        let last = (entries - 1) as f32;
+        let mut out = vec![f32::NAN, -1.0, -0.0, 0.0, 1.0, 2.0, f32::INFINITY];
+        for k in 0..entries {
+            let v = k as f32 / last;
+            let mut lo = v;
+            let mut hi = v;
+            for _ in 0..3 {
+                lo = f32::from_bits(lo.to_bits().saturating_sub(1)).max(0.0);
+                hi = f32::from_bits(hi.to_bits() + 1);
+                out.extend([lo, hi]);
+            }
+            out.extend([v, (k as f32 + 0.5) / last]);
+        }
+        out
+    }
+
+    /// `clear(v)` is true only where both tables' lookups are transparent.
+    fn check(pass: &Composite, entries: usize, lookup: impl Fn(&CompositeTable, f32) -> f32) {
+        let mut clear = 0;
+        for v in values(entries) {
+            if pass.clear(v) {
+                clear += 1;
+                for table in [&pass.table, &pass.full_step] {
+                    assert_eq!(lookup(table, v), 0.0, "v = {v:e} is clear but opaque");
+                }
+            }
+        }
+        // and the test is not vacuous: a table whose first two entries are
+        // transparent has clear values
+        let opaque = pass.table.opaque_entries();
+        if opaque.iter().take(2).all(|&o| !o) {
+            assert!(clear > 0);
+        }
+    }
+
+    fn pass(table: CompositeTable) -> Composite {
+        Composite::new(table, 0.5, 1.0, None, 0.99, 1.0, None)
+    }
+
+    #[test]
+    fn clear_values_look_up_transparent_in_1d_tables() {
+        let lookup = |t: &CompositeTable, v: f32| match t {
+            CompositeTable::OneD(t) => t.lookup(v)[3],
+            CompositeTable::TwoD(_) => unreachable!(),
+        };
+        let ramps = [
+            vec![(0.0, 0.0), (0.1, 0.0), (1.0, 0.2)],
+            vec![(0.0, 0.3), (1.0, 0.2)],
+            vec![(0.0, 0.0), (1.0, 0.0)],
+            vec![(0.0, 0.0), (0.5, 0.0), (0.5, 1.0)],
+            vec![(0.0, 0.0), (0.37, 1e-30), (1.0, 0.0)],
+        ];
+        for alpha in ramps {
+            for interpolation in [Interpolation::Linear, Interpolation::Cubic] {
+                let tf =
+                    Transfer1D::new(vec![(0.0, [1.0; 3])], alpha.clone(), interpolation).unwrap();
+                for entries in [2, 3, 256, 4096] {
+                    let p = pass(CompositeTable::OneD(tf.table(entries)));
+                    check(&p, entries, lookup);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn clear_values_look_up_transparent_in_2d_tables() {
+        let lookup = |t: &CompositeTable, v: f32| match t {
+            CompositeTable::TwoD(t) => [0.0, 0.3, 1.0, 7.0, f32::NAN, f32::INFINITY]
+                .into_iter()
+                .map(|g| t.lookup(v, g)[3])
+                .fold(0.0, f32::max),
+            CompositeTable::OneD(_) => unreachable!(),
+        };
+        for shape in [WidgetShape::Rectangle, WidgetShape::Gaussian] {
+            let widget = Widget {
+                shape,
+                value: [0.3, 0.6],
+                gradient: [0.2, 0.5],
+                color: [1.0, 0.5, 0.0],
+                alpha: 0.8,
+            };
+            let tf = Transfer2D::new(vec![widget], 1.0).unwrap();
+            for (nv, ng) in [(256, 64), (2, 2), (17, 5)] {
+                let p = pass(CompositeTable::TwoD(tf.table(nv, ng)));
+                check(&p, nv, lookup);
+            }
         }
     }
 }
