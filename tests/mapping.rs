@@ -152,7 +152,7 @@ fn assert_mapped<T: Voxel + PartialEq + Debug>(
     let vox = v.data.voxels::<T>().unwrap();
     assert_eq!(
         vox.as_slice().is_some(),
-        offset % std::mem::align_of::<T>() as u64 == 0,
+        offset.is_multiple_of(std::mem::align_of::<T>() as u64),
         "{what}: alignment"
     );
     assert_eq!(
@@ -162,7 +162,7 @@ fn assert_mapped<T: Voxel + PartialEq + Debug>(
     );
     assert_eq!(
         vox.to_aligned(&tiny()).is_ok(),
-        offset % std::mem::align_of::<T>() as u64 == 0,
+        offset.is_multiple_of(std::mem::align_of::<T>() as u64),
         "{what}: an aligned copy is checked against the limit"
     );
     v

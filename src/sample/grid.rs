@@ -8,6 +8,8 @@ use crate::volume::{ScalarType, Voxel, Voxels};
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 
 /// The normalised value of every possible voxel value of `T`, for 8- and 16-bit
 /// types (empty for the others, which normalise each voxel as it is read).
@@ -65,6 +67,10 @@ pub struct Grid<'a, T: Voxel> {
     /// allow it.
     #[cfg(target_arch = "x86_64")]
     gather: Option<avx2::Gather>,
+    /// The gathers run eight lanes wide (`avx512.rs`): `gather` is set and the
+    /// machine has AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    wide: bool,
 }
 
 /// The normalised corners of the cell a ray sampled last (see
@@ -116,6 +122,8 @@ impl<'a, T: Voxel> Grid<'a, T> {
         );
         assert_eq!(lut.len(), T::LUT_SIZE, "normalisation table of the type");
         let stride = [1, n[0], n[0] * n[1]];
+        #[cfg(target_arch = "x86_64")]
+        let gather = avx2::Gather::for_grid::<T>(n, norm);
         Grid {
             voxels,
             lut,
@@ -130,7 +138,9 @@ impl<'a, T: Voxel> Grid<'a, T> {
             flip: 0,
             sse2: n.iter().all(|&n| n < i32::MAX as usize),
             #[cfg(target_arch = "x86_64")]
-            gather: avx2::Gather::for_grid::<T>(n, norm),
+            gather,
+            #[cfg(target_arch = "x86_64")]
+            wide: gather.is_some() && avx512::available(),
         }
     }
 
@@ -206,6 +216,11 @@ impl<'a, T: Voxel> Grid<'a, T> {
         out: &mut [f32],
         cache: &mut CellCache,
     ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide {
+            // SAFETY: `wide` is set only with `gather` on a machine with AVX-512.
+            return unsafe { self.trilinear_avx512(o, d, ts, out) };
+        }
         #[cfg(target_arch = "x86_64")]
         if self.gather.is_some() {
             // SAFETY: `gather` is set only when the machine has AVX2.

@@ -47,6 +47,44 @@ impl Gather {
     }
 }
 
+/// What the vector paths broadcast into their lanes for one call.
+pub(super) struct LaneConstants {
+    /// The voxel storage the gathers read.
+    pub kind: Gather,
+    /// Per axis: the ray's origin and direction, the last voxel and the last cell's
+    /// first voxel (positions are clamped to them).
+    pub axes: [[f64; 4]; 3],
+    /// The flat strides of y and z.
+    pub strides: [i64; 2],
+    /// The flat offsets of a cell's four rows along x (y0z0, y1z0, y0z1, y1z1).
+    pub rows: [i64; 4],
+    /// The largest cell start whose rows the gathers may read: 8-bit rows are read
+    /// four bytes at a time, so a cell whose last row ends within two bytes of the
+    /// data's end must be sampled otherwise (`None`: every cell; no limit for the
+    /// other types).
+    pub safe: Option<i64>,
+}
+
+impl<T: Voxel> Grid<'_, T> {
+    /// The constants of the vector paths for the ray `o + d t`.
+    pub(super) fn lane_constants(&self, o: [f64; 3], d: [f64; 3]) -> LaneConstants {
+        let kind = self.gather.expect("the caller checked the gather path");
+        let [_, dy, dz] = self.step;
+        let len = self.voxels.len();
+        let safe = match kind {
+            Gather::Bits8 => (len >= 4 + dy + dz).then_some(len - 4 - dy - dz),
+            _ => Some(usize::MAX),
+        };
+        LaneConstants {
+            kind,
+            axes: [0, 1, 2].map(|a| [o[a], d[a], self.last[a], self.top_f[a]]),
+            strides: [self.sx as i64, self.sxy as i64],
+            rows: [0, dy, dz, dy + dz].map(|r| r as i64),
+            safe: safe.map(|s| s.min(i64::MAX as usize) as i64),
+        }
+    }
+}
+
 impl<T: Voxel> Grid<'_, T> {
     /// The trilinear samples at `o + d t` (index space) for each `t` of `ts`, into
     /// `out` (as long as `ts`): the bits of [`Grid::trilinear`] at each position.
@@ -62,24 +100,18 @@ impl<T: Voxel> Grid<'_, T> {
         out: &mut [f32],
     ) {
         debug_assert_eq!(ts.len(), out.len());
-        let kind = self.gather.expect("the caller checked the gather path");
-        let axes = [0, 1, 2].map(|a| Axis {
-            o: _mm256_set1_pd(o[a]),
-            d: _mm256_set1_pd(d[a]),
-            last: _mm256_set1_pd(self.last[a]),
-            top: _mm256_set1_pd(self.top_f[a]),
+        let c = self.lane_constants(o, d);
+        let kind = c.kind;
+        let axes = c.axes.map(|[o, d, last, top]| Axis {
+            o: _mm256_set1_pd(o),
+            d: _mm256_set1_pd(d),
+            last: _mm256_set1_pd(last),
+            top: _mm256_set1_pd(top),
         });
-        let (sx, sxy) = (
-            _mm256_set1_epi64x(self.sx as i64),
-            _mm256_set1_epi64x(self.sxy as i64),
-        );
-        let [_, dy, dz] = self.step;
-        let rows = [0, dy, dz, dy + dz].map(|r| _mm256_set1_epi64x(r as i64));
-        // 8-bit rows are read four bytes at a time: a cell whose last row ends within
-        // two bytes of the data's end is sampled one lane at a time instead
-        let len = self.voxels.len();
-        let safe = (kind != Gather::Bits8 || len >= 4 + dy + dz)
-            .then(|| _mm256_set1_epi64x((len - 4 - dy - dz).min(i64::MAX as usize) as i64));
+        let [sx, sxy] = c.strides.map(|s| _mm256_set1_epi64x(s));
+        let rows = c.rows.map(|r| _mm256_set1_epi64x(r));
+        // a cell starting after `safe` is sampled one lane at a time instead
+        let safe = c.safe.map(|s| _mm256_set1_epi64x(s));
         let groups = ts.len() / 4;
         for g in 0..groups {
             let t = _mm256_loadu_pd(ts.as_ptr().add(4 * g));
@@ -236,14 +268,16 @@ mod tests {
     use crate::volume::{Voxel, Voxels};
 
     /// Samples along random rays (inside, across and outside the grid, with NaN and
-    /// out-of-window voxels, on grids whose last row ends the data) taken four at a
-    /// time have the bits of one sample at a time, for each voxel type the gathers
-    /// read.
+    /// out-of-window voxels, on grids whose last row ends the data) taken four (AVX2)
+    /// or eight (AVX-512) at a time have the bits of one sample at a time, for each
+    /// voxel type the gathers read.
     fn along_is_one_at_a_time<T: Voxel>(
         voxel: impl Fn(usize) -> T,
         norm: Normalize,
         expect: Option<Gather>,
     ) {
+        // calls of the AVX2 and of the AVX-512 path (0 where the machine lacks one)
+        let mut paths = [0usize; 2];
         for n in [[9, 8, 7], [2, 3, 2], [5, 1, 4], [3, 4, 1]] {
             let len = n[0] * n[1] * n[2];
             let v: Vec<T> = (0..len).map(&voxel).collect();
@@ -265,14 +299,33 @@ mod tests {
                 let count = (next(0.0, 40.0)) as usize;
                 let t0 = next(-3.0, 1.0);
                 let ts: Vec<f64> = (0..count).map(|k| t0 + 0.37 * k as f64).collect();
-                let mut out = vec![0.0f32; count];
-                g.trilinear_along(o, d, &ts, &mut out, &mut CellCache::default());
+                // the dispatching call, and each vector path this machine has
+                let mut outs = vec![vec![0.0f32; count]; 3];
+                g.trilinear_along(o, d, &ts, &mut outs[0], &mut CellCache::default());
+                if g.gather.is_some() {
+                    // SAFETY: the machine has AVX2 (`gather` is set)
+                    unsafe { g.trilinear_avx2(o, d, &ts, &mut outs[1]) };
+                    if super::super::avx512::available() {
+                        // SAFETY: and AVX-512
+                        unsafe { g.trilinear_avx512(o, d, &ts, &mut outs[2]) };
+                        paths[1] += 1;
+                    }
+                    paths[0] += 1;
+                }
                 for (k, &t) in ts.iter().enumerate() {
                     let p = [0, 1, 2].map(|a| o[a] + d[a] * t);
-                    assert_eq!(out[k].to_bits(), g.trilinear(p).to_bits(), "{n:?} {p:?}");
+                    let bits = g.trilinear(p).to_bits();
+                    assert_eq!(outs[0][k].to_bits(), bits, "{n:?} {p:?}");
+                    if paths[0] > 0 {
+                        assert_eq!(outs[1][k].to_bits(), bits, "AVX2 {n:?} {p:?}");
+                    }
+                    if paths[1] > 0 {
+                        assert_eq!(outs[2][k].to_bits(), bits, "AVX-512 {n:?} {p:?}");
+                    }
                 }
             }
         }
+        eprintln!("vector paths checked (AVX2, AVX-512 calls): {paths:?}");
     }
 
     /// float32 voxels in and out of the window, NaN, infinities and negative zero.

@@ -117,7 +117,7 @@ fn check_data_files(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
         }
     } else {
         let last = h.sizes[dim - 1] as u128;
-        if files > last || last % files != 0 {
+        if files > last || !last.is_multiple_of(files) {
             return Err(err(
                 path,
                 line,

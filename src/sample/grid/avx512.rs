@@ -1,0 +1,181 @@
+//! Trilinear samples eight at a time with AVX-512 (detected at run time): the
+//! AVX2 path of `avx2.rs` on twice as many lanes. The positions and the cell search
+//! take 512-bit f64 lanes, the gathers 64-bit indices in 512-bit vectors, and the
+//! interpolation 256-bit f32 lanes. Each lane does the operations of
+//! [`Grid::trilinear_sse2`] in the same order (no fused multiply-add), so a sample
+//! has the same bits whichever path takes it.
+
+use std::arch::x86_64::*;
+
+use super::avx2::Gather;
+use super::Grid;
+use crate::volume::Voxel;
+
+/// Whether this machine runs the eight-lane path (AVX-512 Foundation, with AVX2 for
+/// the 256-bit halves).
+pub(super) fn available() -> bool {
+    std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx2")
+}
+
+/// One axis' broadcast constants (as in `avx2.rs`, eight lanes).
+struct Axis {
+    o: __m512d,
+    d: __m512d,
+    last: __m512d,
+    top: __m512d,
+}
+
+impl<T: Voxel> Grid<'_, T> {
+    /// The trilinear samples at `o + d t` (index space) for each `t` of `ts`, into
+    /// `out` (as long as `ts`), eight at a time: the bits of [`Grid::trilinear`] at
+    /// each position. The last `ts.len() % 8` samples, and a group of 8-bit cells
+    /// that end near the data's end, go through [`Grid::trilinear_avx2`].
+    ///
+    /// # Safety
+    /// The machine has AVX-512F and AVX2 ([`available`]) and `self.gather` is
+    /// `Some`.
+    #[target_feature(enable = "avx2,avx512f")]
+    pub(super) unsafe fn trilinear_avx512(
+        &self,
+        o: [f64; 3],
+        d: [f64; 3],
+        ts: &[f64],
+        out: &mut [f32],
+    ) {
+        debug_assert_eq!(ts.len(), out.len());
+        let c = self.lane_constants(o, d);
+        let kind = c.kind;
+        let axes = c.axes.map(|[o, d, last, top]| Axis {
+            o: _mm512_set1_pd(o),
+            d: _mm512_set1_pd(d),
+            last: _mm512_set1_pd(last),
+            top: _mm512_set1_pd(top),
+        });
+        let [sx, sxy] = c.strides.map(|s| _mm512_set1_epi64(s));
+        let rows = c.rows.map(|r| _mm512_set1_epi64(r));
+        // a group with a cell starting after `safe` goes through the AVX2 path
+        let safe = c.safe.map(|s| _mm512_set1_epi64(s));
+        let groups = ts.len() / 8;
+        for g in 0..groups {
+            let at = 8 * g;
+            let t = _mm512_loadu_pd(ts.as_ptr().add(at));
+            let (ix, fx) = locate(&axes[0], t);
+            let (iy, fy) = locate(&axes[1], t);
+            let (iz, fz) = locate(&axes[2], t);
+            // flat index of each lane's cell (each below 2^31, the products below 2^62)
+            let base = _mm512_add_epi64(
+                _mm512_add_epi64(
+                    _mm512_cvtepi32_epi64(ix),
+                    _mm512_mul_epu32(_mm512_cvtepi32_epi64(iy), sx),
+                ),
+                _mm512_mul_epu32(_mm512_cvtepi32_epi64(iz), sxy),
+            );
+            let sample = match kind {
+                Gather::Float32 => {
+                    let c = rows.map(|r| self.row_f32_x8::<false>(_mm512_add_epi64(base, r)));
+                    interpolate(c, fx, fy, fz)
+                }
+                Gather::Float32Unit => {
+                    let c = rows.map(|r| self.row_f32_x8::<true>(_mm512_add_epi64(base, r)));
+                    interpolate(c, fx, fy, fz)
+                }
+                Gather::Bits16 => {
+                    let c =
+                        rows.map(|r| self.row_bits_x8::<2>(_mm512_add_epi64(base, r), 0xffff, 16));
+                    interpolate(c, fx, fy, fz)
+                }
+                Gather::Bits8 => {
+                    let safe = safe.is_some_and(|s| _mm512_cmpgt_epi64_mask(base, s) == 0);
+                    if !safe {
+                        let (t, v) = (&ts[at..at + 8], &mut out[at..at + 8]);
+                        self.trilinear_avx2(o, d, t, v);
+                        continue;
+                    }
+                    let c = rows.map(|r| self.row_bits_x8::<1>(_mm512_add_epi64(base, r), 0xff, 8));
+                    interpolate(c, fx, fy, fz)
+                }
+            };
+            _mm256_storeu_ps(out.as_mut_ptr().add(at), sample);
+        }
+        let rest = 8 * groups;
+        self.trilinear_avx2(o, d, &ts[rest..], &mut out[rest..]);
+    }
+
+    /// The normalised float32 voxels at flat indices `at` and `at + 1` of each of
+    /// eight lanes; `UNIT` for the window [0, 1] ([`Gather::Float32Unit`]).
+    #[target_feature(enable = "avx2,avx512f")]
+    #[inline]
+    unsafe fn row_f32_x8<const UNIT: bool>(&self, at: __m512i) -> (__m256, __m256) {
+        // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
+        // voxel; each lane reads the two adjacent float32 as one 64-bit element
+        let pairs = _mm512_i64gather_epi64::<4>(at, self.voxels.as_ptr().cast::<i64>());
+        // the low and high halves of each 64-bit element: voxels `at` and `at + 1`
+        let a = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(pairs));
+        let b = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(_mm512_srli_epi64::<32>(pairs)));
+        if UNIT {
+            // max with 0 (NaN -> 0, -0 -> 0), min with 1, as `avx2.rs`
+            let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
+            let clamp = |v: __m256| _mm256_min_ps(_mm256_max_ps(v, zero), one);
+            return (clamp(a), clamp(b));
+        }
+        let (l, s) = self.norm.lo_scale();
+        let (l, s) = (_mm512_set1_pd(l), _mm512_set1_pd(s));
+        let (zero, one) = (_mm512_setzero_pd(), _mm512_set1_pd(1.0));
+        // as `trilinear_sse2`: (v - lo) * scale, max with 0 (NaN -> 0), min with 1
+        let norm = |v: __m256| {
+            let x = _mm512_mul_pd(_mm512_sub_pd(_mm512_cvtps_pd(v), l), s);
+            _mm512_cvtpd_ps(_mm512_min_pd(_mm512_max_pd(x, zero), one))
+        };
+        (norm(a), norm(b))
+    }
+
+    /// The normalised 8- or 16-bit voxels (`BYTES` per voxel) at flat indices `at`
+    /// and `at + 1` of each of eight lanes, through the normalisation table.
+    #[target_feature(enable = "avx2,avx512f")]
+    #[inline]
+    unsafe fn row_bits_x8<const BYTES: i32>(
+        &self,
+        at: __m512i,
+        mask: i32,
+        shift: i32,
+    ) -> (__m256, __m256) {
+        // SAFETY (the caller's): 16-bit voxels `at` and `at + 1` are the four bytes;
+        // for 8-bit data the caller checked that `at + 3` is inside the data
+        let words = _mm512_i64gather_epi32::<BYTES>(at, self.voxels.as_ptr().cast::<i32>());
+        let mask = _mm256_set1_epi32(mask);
+        let a = _mm256_and_si256(words, mask);
+        let b = _mm256_and_si256(_mm256_srl_epi32(words, _mm_cvtsi32_si128(shift)), mask);
+        // SAFETY: the table has 2^(8 BYTES) entries and every index is below that
+        let lut = self.lut.as_ptr();
+        (
+            _mm256_i32gather_ps::<4>(lut, a),
+            _mm256_i32gather_ps::<4>(lut, b),
+        )
+    }
+}
+
+/// The position `o + d t` on one axis, clamped to the grid (NaN to 0), as the
+/// cell's first voxel (i32 lanes) and the fraction across it (as `avx2.rs`).
+#[target_feature(enable = "avx2,avx512f")]
+#[inline]
+unsafe fn locate(a: &Axis, t: __m512d) -> (__m256i, __m256) {
+    let x = _mm512_add_pd(a.o, _mm512_mul_pd(a.d, t));
+    let x = _mm512_min_pd(_mm512_max_pd(x, _mm512_setzero_pd()), a.last);
+    let i = _mm512_cvttpd_epi32(_mm512_min_pd(x, a.top));
+    let f = _mm512_cvtpd_ps(_mm512_sub_pd(x, _mm512_cvtepi32_pd(i)));
+    (i, f)
+}
+
+/// The trilinear interpolation of eight lanes' cells from their rows, as
+/// `avx2.rs`'s `interpolate`.
+#[target_feature(enable = "avx2,avx512f")]
+#[inline]
+unsafe fn interpolate(c: [(__m256, __m256); 4], fx: __m256, fy: __m256, fz: __m256) -> __m256 {
+    let lerp =
+        |a: __m256, b: __m256, t: __m256| _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), t));
+    let x = c.map(|(a, b)| lerp(a, b, fx));
+    let y0 = lerp(x[0], x[1], fy);
+    let y1 = lerp(x[2], x[3], fy);
+    let v = lerp(y0, y1, fz);
+    _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), v))
+}
