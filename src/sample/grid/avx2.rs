@@ -72,7 +72,7 @@ impl<T: Voxel> Grid<'_, T> {
         let [_, dy, dz] = self.step;
         let len = self.voxels.len();
         let safe = match kind {
-            Gather::Bits8 => (len >= 4 + dy + dz).then_some(len - 4 - dy - dz),
+            Gather::Bits8 => len.checked_sub(4 + dy + dz),
             _ => Some(usize::MAX),
         };
         LaneConstants {
@@ -278,7 +278,7 @@ mod tests {
     ) {
         // calls of the AVX2 and of the AVX-512 path (0 where the machine lacks one)
         let mut paths = [0usize; 2];
-        for n in [[9, 8, 7], [2, 3, 2], [5, 1, 4], [3, 4, 1]] {
+        for n in [[9, 8, 7], [2, 3, 2], [5, 1, 4], [3, 4, 1], [2, 2, 1]] {
             let len = n[0] * n[1] * n[2];
             let v: Vec<T> = (0..len).map(&voxel).collect();
             let lut = normalisation_table::<T>(norm);
