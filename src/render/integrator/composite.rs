@@ -39,13 +39,36 @@ pub enum CompositeTable {
     TwoD(Table2D),
 }
 
-impl CompositeTable {
-    /// The table with opacities corrected for segments of `ratio` reference steps.
-    fn corrected(&self, ratio: f64) -> CompositeTable {
+/// A pass's transfer-function table as given, and with its opacities corrected for
+/// one whole step, both of one kind: a ray's loop is compiled for that kind
+/// ([`Lookup`]), with no match on it per sample.
+#[derive(Clone, Debug)]
+enum Tables {
+    OneD(Pair<Table1D>),
+    TwoD(Pair<Table2D>),
+}
+
+/// A table as given and corrected for a whole step.
+#[derive(Clone, Debug)]
+struct Pair<T> {
+    given: T,
+    full_step: T,
+}
+
+impl Tables {
+    /// `table`, and `table` with opacities corrected for segments of `ratio`
+    /// reference steps.
+    fn new(table: CompositeTable, ratio: f64) -> Tables {
         let c = |a: f32| correct_opacity(a, ratio as f32);
-        match self {
-            CompositeTable::OneD(t) => CompositeTable::OneD(t.map_alpha(c)),
-            CompositeTable::TwoD(t) => CompositeTable::TwoD(t.map_alpha(c)),
+        match table {
+            CompositeTable::OneD(t) => Tables::OneD(Pair {
+                full_step: t.map_alpha(c),
+                given: t,
+            }),
+            CompositeTable::TwoD(t) => Tables::TwoD(Pair {
+                full_step: t.map_alpha(c),
+                given: t,
+            }),
         }
     }
 
@@ -53,8 +76,9 @@ impl CompositeTable {
     /// transparent.
     fn opaque_entries(&self) -> Vec<bool> {
         match self {
-            CompositeTable::OneD(t) => t.alphas().map(|a| a > 0.0).collect(),
-            CompositeTable::TwoD(t) => t
+            Tables::OneD(t) => t.given.alphas().map(|a| a > 0.0).collect(),
+            Tables::TwoD(t) => t
+                .given
                 .max_alpha_per_value()
                 .into_iter()
                 .map(|a| a > 0.0)
@@ -62,21 +86,60 @@ impl CompositeTable {
         }
     }
 
-    /// Memory held by the table, in bytes.
-    pub fn byte_size(&self) -> usize {
+    /// Memory held by both tables, in bytes.
+    fn byte_size(&self) -> usize {
         match self {
-            CompositeTable::OneD(t) => t.byte_size(),
-            CompositeTable::TwoD(t) => t.byte_size(),
+            Tables::OneD(t) => t.given.byte_size() + t.full_step.byte_size(),
+            Tables::TwoD(t) => t.given.byte_size() + t.full_step.byte_size(),
         }
+    }
+}
+
+/// A table's RGBA lookup, with the gradient when the lookup needs one.
+trait Lookup {
+    /// RGBA of value `v` at `p()` (index space; asked for the gradient magnitude of
+    /// 2D tables only, expressed per voxel with `voxel_length`), with the gradient
+    /// when one was computed.
+    fn rgba<F: Field>(
+        &self,
+        field: &F,
+        p: impl FnOnce() -> DVec3,
+        v: f32,
+        voxel_length: f64,
+    ) -> ([f32; 4], Option<DVec3>);
+}
+
+impl Lookup for Table1D {
+    #[inline(always)]
+    fn rgba<F: Field>(
+        &self,
+        _field: &F,
+        _p: impl FnOnce() -> DVec3,
+        v: f32,
+        _voxel_length: f64,
+    ) -> ([f32; 4], Option<DVec3>) {
+        (self.lookup(v), None)
+    }
+}
+
+impl Lookup for Table2D {
+    #[inline(always)]
+    fn rgba<F: Field>(
+        &self,
+        field: &F,
+        p: impl FnOnce() -> DVec3,
+        v: f32,
+        voxel_length: f64,
+    ) -> ([f32; 4], Option<DVec3>) {
+        let g = field.gradient(p());
+        (self.lookup(v, (g.length() * voxel_length) as f32), Some(g))
     }
 }
 
 /// Front-to-back compositing through a transfer function.
 #[derive(Clone, Debug)]
 pub struct Composite {
-    table: CompositeTable,
-    /// `table` with opacities corrected for one whole step.
-    full_step: CompositeTable,
+    tables: Tables,
     shader: Option<Shader>,
     reference_step: f64,
     early_stop: f32,
@@ -110,13 +173,13 @@ impl Composite {
         // entries 0..z are transparent at every gradient magnitude: a lookup between
         // two of them interpolates zeros, and one at position z - 1 exactly reads
         // entry z - 1 with weight 1 (and entry z with weight 0)
-        let opaque = table.opaque_entries();
+        let tables = Tables::new(table, dt / reference_step);
+        let opaque = tables.opaque_entries();
         let z = opaque.iter().position(|&o| o).unwrap_or(opaque.len());
         Composite {
             value_last: (opaque.len() - 1) as f32,
             clear_up_to: z as f32 - 1.0,
-            full_step: table.corrected(dt / reference_step),
-            table,
+            tables,
             shader,
             reference_step,
             early_stop,
@@ -130,7 +193,7 @@ impl Composite {
     /// transparent (found in O(1) per cell from a prefix count of the table's
     /// entries that are not).
     pub fn classify(&mut self, grid: &MacroGrid) {
-        let opaque = self.table.opaque_entries();
+        let opaque = self.tables.opaque_entries();
         let last = opaque.len() - 1;
         let mut prefix = Vec::with_capacity(opaque.len() + 1);
         prefix.push(0u32);
@@ -156,8 +219,7 @@ impl Composite {
 
     /// Memory held by the tables, in bytes.
     pub fn byte_size(&self) -> usize {
-        self.table.byte_size()
-            + self.full_step.byte_size()
+        self.tables.byte_size()
             + self.preintegrated.as_ref().map_or(0, |p| p.byte_size())
             + self.transparent.len()
     }
@@ -172,28 +234,6 @@ impl Composite {
     fn clear(&self, v: f32) -> bool {
         // the position as the tables' lookups compute it
         clamp_unit(v) * self.value_last <= self.clear_up_to
-    }
-
-    /// RGBA of value `v` at `p()` (index space; asked for the gradient magnitude of
-    /// 2D tables only), with the gradient when one was computed.
-    #[inline(always)]
-    fn lookup<F: Field>(
-        &self,
-        table: &CompositeTable,
-        field: &F,
-        p: impl FnOnce() -> DVec3,
-        v: f32,
-    ) -> ([f32; 4], Option<DVec3>) {
-        match table {
-            CompositeTable::OneD(t) => (t.lookup(v), None),
-            CompositeTable::TwoD(t) => {
-                let g = field.gradient(p());
-                (
-                    t.lookup(v, (g.length() * self.voxel_length) as f32),
-                    Some(g),
-                )
-            }
-        }
     }
 }
 
@@ -230,22 +270,44 @@ impl Integrand for Composite {
             };
             return (c.acc.finish(), counts);
         }
+        let (rgba, taken) = match &self.tables {
+            Tables::OneD(tables) => self.midpoints(tables, field, ray, march, grid),
+            Tables::TwoD(tables) => self.midpoints(tables, field, ray, march, grid),
+        };
+        (rgba, Counts { taken, nominal })
+    }
+}
+
+impl Composite {
+    /// Composites the midpoint samples of `march` through `tables`; the pixel and
+    /// the samples taken.
+    #[inline(always)]
+    fn midpoints<T: Lookup, F: Field>(
+        &self,
+        tables: &Pair<T>,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        grid: Option<&MacroGrid>,
+    ) -> ([f32; 4], u64) {
         let mut c = Midpoint {
             pass: self,
+            tables,
             field,
             ray,
             march,
             acc: FrontToBack::new(self.early_stop),
-            to_eye,
+            to_eye: (-ray.dir).as_vec3(),
         };
         let taken = drive(&Midpoints(march), field, ray, grid, &mut c);
-        (c.acc.finish(), Counts { taken, nominal })
+        (c.acc.finish(), taken)
     }
 }
 
-/// Compositing of the segments' midpoint samples.
-struct Midpoint<'a, F: Field> {
+/// Compositing of the segments' midpoint samples through tables of one kind.
+struct Midpoint<'a, F: Field, T> {
     pass: &'a Composite,
+    tables: &'a Pair<T>,
     field: &'a F,
     ray: &'a PixelRay,
     march: &'a March,
@@ -253,7 +315,7 @@ struct Midpoint<'a, F: Field> {
     to_eye: Vec3,
 }
 
-impl<F: Field> Consumer for Midpoint<'_, F> {
+impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     #[inline(always)]
     fn skippable(&self, cell: usize, _range: [f32; 2]) -> bool {
         self.pass.transparent.get(cell).copied().unwrap_or(false)
@@ -275,14 +337,17 @@ impl<F: Field> Consumer for Midpoint<'_, F> {
         let pos = || self.ray.index.at(t);
         let (rgba, grad, a) = if full {
             // opacity already corrected for a whole step
-            let (rgba, grad) = p.lookup(&p.full_step, self.field, pos, v);
+            let (rgba, grad) = self
+                .tables
+                .full_step
+                .rgba(self.field, pos, v, p.voxel_length);
             (rgba, grad, rgba[3])
         } else {
             let length = self.march.t(i + 1) - self.march.t(i);
             if length <= 0.0 {
                 return ControlFlow::Continue(());
             }
-            let (rgba, grad) = p.lookup(&p.table, self.field, pos, v);
+            let (rgba, grad) = self.tables.given.rgba(self.field, pos, v, p.voxel_length);
             let a = correct_opacity(rgba[3], (length / p.reference_step) as f32);
             (rgba, grad, a)
         };
@@ -472,19 +537,20 @@ mod tests {
     }
 
     /// `clear(v)` is true only where both tables' lookups are transparent.
-    fn check(pass: &Composite, entries: usize, lookup: impl Fn(&CompositeTable, f32) -> f32) {
+    fn check(pass: &Composite, entries: usize, lookup: impl Fn(&Tables, bool, f32) -> f32) {
         let mut clear = 0;
         for v in values(entries) {
             if pass.clear(v) {
                 clear += 1;
-                for table in [&pass.table, &pass.full_step] {
-                    assert_eq!(lookup(table, v), 0.0, "v = {v:e} is clear but opaque");
+                for full_step in [false, true] {
+                    let a = lookup(&pass.tables, full_step, v);
+                    assert_eq!(a, 0.0, "v = {v:e} is clear but opaque");
                 }
             }
         }
         // and the test is not vacuous: a table whose first two entries are
         // transparent has clear values
-        let opaque = pass.table.opaque_entries();
+        let opaque = pass.tables.opaque_entries();
         if opaque.iter().take(2).all(|&o| !o) {
             assert!(clear > 0);
         }
@@ -496,9 +562,9 @@ mod tests {
 
     #[test]
     fn clear_values_look_up_transparent_in_1d_tables() {
-        let lookup = |t: &CompositeTable, v: f32| match t {
-            CompositeTable::OneD(t) => t.lookup(v)[3],
-            CompositeTable::TwoD(_) => unreachable!(),
+        let lookup = |t: &Tables, full_step: bool, v: f32| match t {
+            Tables::OneD(t) => [&t.given, &t.full_step][usize::from(full_step)].lookup(v)[3],
+            Tables::TwoD(_) => unreachable!(),
         };
         let ramps = [
             vec![(0.0, 0.0), (0.1, 0.0), (1.0, 0.2)],
@@ -521,12 +587,12 @@ mod tests {
 
     #[test]
     fn clear_values_look_up_transparent_in_2d_tables() {
-        let lookup = |t: &CompositeTable, v: f32| match t {
-            CompositeTable::TwoD(t) => [0.0, 0.3, 1.0, 7.0, f32::NAN, f32::INFINITY]
+        let lookup = |t: &Tables, full_step: bool, v: f32| match t {
+            Tables::TwoD(t) => [0.0, 0.3, 1.0, 7.0, f32::NAN, f32::INFINITY]
                 .into_iter()
-                .map(|g| t.lookup(v, g)[3])
+                .map(|g| [&t.given, &t.full_step][usize::from(full_step)].lookup(v, g)[3])
                 .fold(0.0, f32::max),
-            CompositeTable::OneD(_) => unreachable!(),
+            Tables::OneD(_) => unreachable!(),
         };
         for shape in [WidgetShape::Rectangle, WidgetShape::Gaussian] {
             let widget = Widget {
