@@ -216,15 +216,18 @@ impl<'a, T: Voxel> Grid<'a, T> {
         out: &mut [f32],
         cache: &mut CellCache,
     ) {
+        // the vector paths exist for the types the gathers read (a constant per `T`,
+        // so the other types do not compile them)
         #[cfg(target_arch = "x86_64")]
-        if self.wide {
-            // SAFETY: `wide` is set only with `gather` on a machine with AVX-512.
-            return unsafe { self.trilinear_avx512(o, d, ts, out) };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if self.gather.is_some() {
-            // SAFETY: `gather` is set only when the machine has AVX2.
-            return unsafe { self.trilinear_avx2(o, d, ts, out) };
+        if const { avx2::Gather::reads(T::TYPE) } {
+            if self.wide {
+                // SAFETY: `wide` is set only with `gather` on a machine with AVX-512.
+                return unsafe { self.trilinear_avx512(o, d, ts, out) };
+            }
+            if self.gather.is_some() {
+                // SAFETY: `gather` is set only when the machine has AVX2.
+                return unsafe { self.trilinear_avx2(o, d, ts, out) };
+            }
         }
         for (v, &t) in out.iter_mut().zip(ts) {
             *v = self.trilinear_cached([0, 1, 2].map(|a| o[a] + d[a] * t), cache);

@@ -26,11 +26,23 @@ pub(super) enum Gather {
 }
 
 impl Gather {
+    /// Whether a gather path reads voxels of type `ty` (signed 8- and 16-bit data is
+    /// read as unsigned bits).
+    pub(super) const fn reads(ty: ScalarType) -> bool {
+        matches!(
+            ty,
+            ScalarType::Float32 | ScalarType::Uint8 | ScalarType::Uint16
+        )
+    }
+
     /// The gather path for voxels of type `T` on a grid of `n` voxels per axis, if
     /// this machine has AVX2 and the grid suits it: the cell search converts to i32
     /// and the flat index multiplies 32-bit lanes, and the x axis has two voxels (so
     /// a cell's two voxels along x are adjacent in memory).
     pub(super) fn for_grid<T: Voxel>(n: [usize; 3], norm: Normalize) -> Option<Gather> {
+        if !Gather::reads(T::TYPE) {
+            return None;
+        }
         let kind = match T::TYPE {
             ScalarType::Float32 if norm.lo_scale() == (0.0, 1.0) => Gather::Float32Unit,
             ScalarType::Float32 => Gather::Float32,
