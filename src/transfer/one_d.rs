@@ -90,7 +90,7 @@ impl Table1D {
     #[inline(always)]
     pub fn lookup(&self, v: f32) -> [f32; 4] {
         let last = self.entries.len() - 1;
-        let x = clamp_unit(v) * last as f32;
+        let x = table_position(v, last as f32);
         // x is in [0, last]: truncation is floor; one instruction through i32, where a
         // checked conversion to usize takes several (tables have fewer than 2^31
         // entries: see `table`)
@@ -139,6 +139,15 @@ impl Table1D {
 pub(crate) fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
     use glam::Vec4;
     (Vec4::splat(1.0 - t) * Vec4::from_array(a) + Vec4::splat(t) * Vec4::from_array(b)).to_array()
+}
+
+/// Where a table whose entries are evenly spaced over [0, 1], the last at index
+/// `last`, looks `v` up: `v` clamped to [0, 1] (NaN to 0) times `last`. Every table
+/// lookup computes its position here, and so does the composite's test for values
+/// that look up a transparent entry, which must agree with it to the bit.
+#[inline(always)]
+pub(crate) fn table_position(v: f32, last: f32) -> f32 {
+    clamp_unit(v) * last
 }
 
 /// `x` clamped to [0, 1], NaN to 0 (two comparisons: `x > 0` is false for NaN).

@@ -2,7 +2,7 @@
 //! (REFERENCE.md "Transfer functions": boundaries between materials show up as arcs in the
 //! value / gradient-magnitude histogram, Levoy 1988, Kindlmann and Durkin 1998).
 
-use super::one_d::{clamp_unit, lerp4};
+use super::one_d::{clamp_unit, lerp4, table_position};
 use super::{check_unit, TransferError};
 
 /// The shape of a widget's opacity over the (value, gradient magnitude) plane.
@@ -188,8 +188,8 @@ impl Table2D {
     /// `v` and `g` are clamped to the table's range and NaN counts as 0.
     #[inline(always)]
     pub fn lookup(&self, v: f32, g: f32) -> [f32; 4] {
-        let (i, tv) = cell(clamp_unit(v), self.nv);
-        let (j, tg) = cell(clamp_unit(g / self.gradient_max), self.ng);
+        let (i, tv) = cell(v, self.nv);
+        let (j, tg) = cell(g / self.gradient_max, self.ng);
         let at = |i: usize, j: usize| self.entries[j * self.nv + i];
         let low = lerp4(at(i, j), at(i + 1, j), tv);
         let high = lerp4(at(i, j + 1), at(i + 1, j + 1), tv);
@@ -231,11 +231,11 @@ impl Table2D {
     }
 }
 
-/// For `u` in [0, 1] on an axis of `n >= 2` entries: the lower entry's index (at most `n - 2`)
-/// and the fraction towards the next one.
+/// For `u` (clamped to [0, 1], NaN to 0) on an axis of `n >= 2` entries: the lower entry's
+/// index (at most `n - 2`) and the fraction towards the next one.
 fn cell(u: f32, n: usize) -> (usize, f32) {
-    let x = u * (n - 1) as f32;
-    // `u` is in [0, 1]: one instruction through i32 (tables are far smaller)
+    let x = table_position(u, (n - 1) as f32);
+    // `x` is in [0, n - 1]: one instruction through i32 (tables are far smaller)
     let i = (x as i32 as usize).min(n - 2);
     (i, x - i as f32)
 }

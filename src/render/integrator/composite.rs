@@ -28,7 +28,7 @@ use crate::render::march::{March, Midpoints};
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;
 use crate::shade::Shader;
-use crate::transfer::{clamp_unit, correct_opacity, Preintegrated, Table1D, Table2D};
+use crate::transfer::{correct_opacity, table_position, Preintegrated, Table1D, Table2D};
 
 /// A transfer-function table.
 #[derive(Clone, Debug)]
@@ -148,8 +148,8 @@ pub struct Composite {
     /// Per macrocell of the pass's grid: true where the transfer function is
     /// transparent over the cell's values.
     transparent: Vec<bool>,
-    /// Entries along the value axis, less one: a value `v` is looked up at
-    /// position `clamp_unit(v) * value_last` of the table.
+    /// Entries along the value axis, less one: the tables look a value `v` up at
+    /// `table_position(v, value_last)`.
     value_last: f32,
     /// The last table position up to which every lookup is transparent (-1 when
     /// the first entry is not): see [`Composite::clear`].
@@ -202,7 +202,7 @@ impl Composite {
         }
         // a lookup of v reads the entries around v * last: one entry more on each
         // side covers the f32 rounding of that product
-        let entry = |v: f32| (v.clamp(0.0, 1.0) * last as f32) as usize;
+        let entry = |v: f32| table_position(v, last as f32) as usize;
         self.transparent = (0..grid.len())
             .map(|m| {
                 let [lo, hi] = grid.range(m);
@@ -233,7 +233,7 @@ impl Composite {
     #[inline(always)]
     fn clear(&self, v: f32) -> bool {
         // the position as the tables' lookups compute it
-        clamp_unit(v) * self.value_last <= self.clear_up_to
+        table_position(v, self.value_last) <= self.clear_up_to
     }
 }
 
