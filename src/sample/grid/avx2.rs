@@ -26,13 +26,21 @@ pub(super) enum Gather {
 }
 
 impl Gather {
-    /// Whether a gather path reads voxels of type `ty` (signed 8- and 16-bit data is
-    /// read as unsigned bits).
+    /// The storage a gather path reads voxels of type `ty` as, if any: float32
+    /// voxels as they are, 8- and 16-bit ones as the raw bits that index the
+    /// normalisation table (signed data is read through them, see `bits_table`).
+    const fn storage(ty: ScalarType) -> Option<Gather> {
+        match ty {
+            ScalarType::Float32 => Some(Gather::Float32),
+            ScalarType::Uint8 => Some(Gather::Bits8),
+            ScalarType::Uint16 => Some(Gather::Bits16),
+            _ => None,
+        }
+    }
+
+    /// Whether a gather path reads voxels of type `ty`.
     pub(super) const fn reads(ty: ScalarType) -> bool {
-        matches!(
-            ty,
-            ScalarType::Float32 | ScalarType::Uint8 | ScalarType::Uint16
-        )
+        Gather::storage(ty).is_some()
     }
 
     /// The gather path for voxels of type `T` on a grid of `n` voxels per axis, if
@@ -40,17 +48,9 @@ impl Gather {
     /// and the flat index multiplies 32-bit lanes, and the x axis has two voxels (so
     /// a cell's two voxels along x are adjacent in memory).
     pub(super) fn for_grid<T: Voxel>(n: [usize; 3], norm: Normalize) -> Option<Gather> {
-        if !Gather::reads(T::TYPE) {
-            return None;
-        }
-        let kind = match T::TYPE {
-            ScalarType::Float32 if norm.lo_scale() == (0.0, 1.0) => Gather::Float32Unit,
-            ScalarType::Float32 => Gather::Float32,
-            // the table is indexed by the raw bits for these two (signed data is read
-            // through them, see `bits_table`)
-            ScalarType::Uint8 => Gather::Bits8,
-            ScalarType::Uint16 => Gather::Bits16,
-            _ => return None,
+        let kind = match Gather::storage(T::TYPE)? {
+            Gather::Float32 if norm.lo_scale() == (0.0, 1.0) => Gather::Float32Unit,
+            kind => kind,
         };
         let fits = n.iter().all(|&n| n < i32::MAX as usize)
             && n[0].checked_mul(n[1]).is_some_and(|s| s < 1 << 31)
