@@ -321,8 +321,8 @@ fn shade_normal(shader: &Shader, ray: &PixelRay, t: f64, normal: Option<DVec3>) 
 
 #[cfg(test)]
 mod tests {
+    use super::super::testing::along_x;
     use super::*;
-    use crate::render::ray::IndexRay;
 
     /// `f(x)` along x.
     struct Along<G: Fn(f64) -> f32 + Sync>(G);
@@ -342,18 +342,7 @@ mod tests {
     }
 
     fn crossing(f: impl Fn(f64) -> f32 + Sync, level: f32) -> Option<f64> {
-        let ray = PixelRay {
-            origin: DVec3::ZERO,
-            dir: DVec3::X,
-            index: IndexRay {
-                o: DVec3::ZERO,
-                d: DVec3::X,
-            },
-            t_enter: 0.0,
-            t_exit: 10.0,
-            t_depth_ref: 0.0,
-            cut: None,
-        };
+        let ray = along_x(10.0);
         let m = March::new(0.0, 10.0, 1.0);
         first_crossing(&Along(f), &ray, &m, None, level, true).0
     }

@@ -140,11 +140,36 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
     };
     let mut taken = 0u64;
     // samples before `i` are handled; those from `i` to the start of the current
-    // span lie in cells that were passed over, while `gap` is true
+    // span lie in cells that were passed over, while `gap` is true; consecutive
+    // cells that are not passed over are sampled as one run (full batches, and the
+    // sample index found once per run rather than per cell): `open` is where the
+    // run from `i` ends so far
     let mut i = 0;
     let mut gap = false;
+    let mut open: Option<f64> = None;
     for span in grid.walk(index, ray.t_enter, ray.t_exit) {
-        if consumer.skippable(span.cell, grid.range(span.cell)) {
+        let range = grid.range(span.cell);
+        let mut skippable = consumer.skippable(span.cell, range);
+        if skippable {
+            if let Some(t1) = open.take() {
+                let j = lattice.first_at_or_after(t1).max(i);
+                if j > i {
+                    let (count, stopped) = take(i, j, consumer);
+                    taken += count;
+                    if stopped {
+                        return taken;
+                    }
+                    i = j;
+                }
+                // asked again, now that every earlier sample is handed over: they
+                // may change the answer (a local MIP that started climbing samples
+                // on). A cell that was not skippable before them is sampled, which
+                // is always right (a running maximum that has grown since would
+                // only have passed over it)
+                skippable = consumer.skippable(span.cell, range);
+            }
+        }
+        if skippable {
             gap = true;
             if !span.last {
                 continue;
@@ -165,22 +190,13 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
                 i = j;
             }
         }
-        let j = if span.last {
-            n
-        } else {
-            lattice.first_at_or_after(span.t1).max(i)
-        };
-        if j > i {
-            let (count, stopped) = take(i, j, consumer);
-            taken += count;
-            if stopped {
-                return taken;
-            }
-            i = j;
-        }
         if span.last {
-            break;
+            if i < n {
+                taken += take(i, n, consumer).0;
+            }
+            return taken;
         }
+        open = Some(span.t1);
     }
     // a walk that ended early (non-finite parameters) leaves its samples here
     if i < n {
@@ -289,9 +305,112 @@ pub fn trace<I: Integrand, F: Field>(
     (value, counts.taken)
 }
 
+/// Fields and rays along x for the integrators' tests.
+#[cfg(test)]
+pub(super) mod testing {
+    use glam::DVec3;
+
+    use super::PixelRay;
+    use crate::render::ray::IndexRay;
+    use crate::sample::Field;
+
+    /// A field that is `v[round(x)]` along x (clamped to the ends).
+    pub struct Line<'a>(pub &'a [f32]);
+
+    impl Field for Line<'_> {
+        fn sizes(&self) -> [usize; 3] {
+            [self.0.len(), 1, 1]
+        }
+        fn value(&self, p: DVec3) -> f32 {
+            self.0[(p.x.round().max(0.0) as usize).min(self.0.len() - 1)]
+        }
+        fn gradient(&self, _p: DVec3) -> DVec3 {
+            DVec3::ZERO
+        }
+        fn cell_corners(&self, _c: [usize; 3]) -> [f32; 8] {
+            [0.0; 8]
+        }
+    }
+
+    /// The ray along +x from 0 to `t_exit` (index space = world space).
+    pub fn along_x(t_exit: f64) -> PixelRay {
+        PixelRay {
+            origin: DVec3::ZERO,
+            dir: DVec3::X,
+            index: IndexRay {
+                o: DVec3::ZERO,
+                d: DVec3::X,
+            },
+            t_enter: 0.0,
+            t_exit,
+            t_depth_ref: 0.0,
+            cut: None,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    use super::testing::{along_x, Line};
     use super::*;
+    use crate::render::skip::Support;
+
+    /// Records what `drive` hands it; passes over all-zero cells only until it has
+    /// taken a sample of at least 0.5 (a consumer whose answer changes with the
+    /// samples, as a local MIP's does once it climbs).
+    #[derive(Default)]
+    struct Watch {
+        seen: bool,
+        taken: Vec<usize>,
+        skipped: Vec<(usize, usize)>,
+    }
+
+    impl Consumer for Watch {
+        fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
+            !self.seen && range[1] <= 0.0
+        }
+        fn skip(&mut self, i: usize, j: usize) -> ControlFlow<()> {
+            self.skipped.push((i, j));
+            ControlFlow::Continue(())
+        }
+        fn take(&mut self, i: usize, _t: f64, f: f32) -> ControlFlow<()> {
+            self.taken.push(i);
+            self.seen |= f >= 0.5;
+            ControlFlow::Continue(())
+        }
+    }
+
+    #[test]
+    fn drive_asks_again_after_sampling_a_run_of_cells() {
+        // 65 voxels along x (eight macrocells): a peak in cell 1, zeros after it
+        // up to a bump in cell 5
+        let mut v = vec![0.0f32; 65];
+        v[12] = 1.0;
+        v[13] = 1.0;
+        v[44] = 0.3;
+        let grid = MacroGrid::from_values([65, 1, 1], Support::Linear, |i| v[i]);
+        let field = Line(&v);
+        let ray = along_x(64.0);
+        let march = March::new(0.0, 64.0, 0.5);
+        let n = march.len();
+        let mut w = Watch::default();
+        let taken = drive(&march, &field, &ray, Some(&grid), &mut w);
+        assert_eq!(taken as usize, w.taken.len());
+        // every sample handed over once, in order, as taken or passed over
+        let mut all: Vec<usize> = w.taken.clone();
+        for &(i, j) in &w.skipped {
+            all.extend(i..j);
+        }
+        all.sort_unstable();
+        assert_eq!(all, (0..n).collect::<Vec<_>>());
+        assert!(w.taken.windows(2).all(|p| p[0] < p[1]));
+        // cell 0 was passed over, and from the first sample of the peak (x = 12)
+        // on, nothing is: the zero cells after the peak were asked again once the
+        // run of cells before them was sampled
+        assert!(!w.skipped.is_empty() && w.skipped[0].0 == 0);
+        let first = march.first_at_or_after(12.0);
+        assert!((first..n).all(|i| w.taken.contains(&i)), "{:?}", w.skipped);
+    }
 
     #[test]
     fn jitter_is_a_deterministic_uniform_fraction() {

@@ -496,45 +496,13 @@ impl Integrand for Lmip {
 
 #[cfg(test)]
 mod tests {
+    use super::super::testing::{along_x, Line};
     use super::super::trace;
     use super::*;
-    use crate::render::ray::IndexRay;
     use glam::DVec3;
 
-    /// A field that is `v[round(x)]` along x.
-    struct Line(&'static [f32]);
-    impl Field for Line {
-        fn sizes(&self) -> [usize; 3] {
-            [self.0.len(), 1, 1]
-        }
-        fn value(&self, p: DVec3) -> f32 {
-            self.0[p.x.round() as usize]
-        }
-        fn gradient(&self, _p: DVec3) -> DVec3 {
-            DVec3::ZERO
-        }
-        fn cell_corners(&self, _c: [usize; 3]) -> [f32; 8] {
-            [0.0; 8]
-        }
-    }
-
-    fn ray(n: usize) -> PixelRay {
-        PixelRay {
-            origin: DVec3::ZERO,
-            dir: DVec3::X,
-            index: IndexRay {
-                o: DVec3::ZERO,
-                d: DVec3::X,
-            },
-            t_enter: 0.0,
-            t_exit: (n - 1) as f64,
-            t_depth_ref: 0.0,
-            cut: None,
-        }
-    }
-
     fn run(i: impl Integrand, v: &'static [f32]) -> f32 {
-        trace(&i, &Line(v), &ray(v.len()), 1.0, 0.0).0[0]
+        trace(&i, &Line(v), &along_x((v.len() - 1) as f64), 1.0, 0.0).0[0]
     }
 
     #[test]
@@ -563,7 +531,7 @@ mod tests {
                 [0.0; 8]
             }
         }
-        let mut r = ray(2);
+        let mut r = along_x(1.0);
         r.t_exit = 1.5;
         let got = trace(&Average, &X, &r, 1.0, 0.0).0[0];
         assert!((got - 0.75).abs() < 1e-7);
