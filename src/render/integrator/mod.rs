@@ -105,7 +105,10 @@ pub trait Integrand: Sync {
 /// What a sampled integrator does with the samples of one ray, in order.
 pub trait Consumer {
     /// Whether every sample inside macrocell `cell`, whose values lie in `range`,
-    /// can be passed over now without changing the result.
+    /// can be passed over now without changing the result. [`drive`] may ask before
+    /// the samples of the cells just in front of `cell` are handed over (it samples
+    /// consecutive cells as one run); when the answer is true it asks again after
+    /// them, so only the second answer decides, and a false one only costs samples.
     fn skippable(&self, cell: usize, range: [f32; 2]) -> bool;
     /// The samples `i..j` are passed over (the consumer accounts for the gap);
     /// `Break` ends the ray.
@@ -116,7 +119,8 @@ pub trait Consumer {
 
 /// The one sampling loop: hands `consumer` the samples of `lattice` along `ray`
 /// (values of `field`), in order, passing over the samples of the macrocells it can
-/// skip when `grid` is given. Returns the number of samples taken.
+/// skip when `grid` is given (consecutive cells it cannot skip are sampled as one
+/// run). Returns the number of samples taken.
 #[inline(always)]
 pub fn drive<L: Lattice, F: Field, C: Consumer>(
     lattice: &L,
