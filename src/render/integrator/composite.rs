@@ -271,16 +271,16 @@ impl Integrand for Composite {
             return (c.acc.finish(), counts);
         }
         let (rgba, taken) = match &self.tables {
-            Tables::OneD(tables) => self.midpoints(tables, field, ray, march, grid),
-            Tables::TwoD(tables) => self.midpoints(tables, field, ray, march, grid),
+            Tables::OneD(tables) => self.midpoints(tables, field, ray, march, grid, to_eye),
+            Tables::TwoD(tables) => self.midpoints(tables, field, ray, march, grid, to_eye),
         };
         (rgba, Counts { taken, nominal })
     }
 }
 
 impl Composite {
-    /// Composites the midpoint samples of `march` through `tables`; the pixel and
-    /// the samples taken.
+    /// Composites the midpoint samples of `march` through `tables` (shading
+    /// towards `to_eye`); the pixel and the samples taken.
     #[inline(always)]
     fn midpoints<T: Lookup, F: Field>(
         &self,
@@ -289,6 +289,7 @@ impl Composite {
         ray: &PixelRay,
         march: &March,
         grid: Option<&MacroGrid>,
+        to_eye: Vec3,
     ) -> ([f32; 4], u64) {
         let mut c = Midpoint {
             pass: self,
@@ -297,7 +298,7 @@ impl Composite {
             ray,
             march,
             acc: FrontToBack::new(self.early_stop),
-            to_eye: (-ray.dir).as_vec3(),
+            to_eye,
         };
         let taken = drive(&Midpoints(march), field, ray, grid, &mut c);
         (c.acc.finish(), taken)
