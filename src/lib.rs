@@ -17,6 +17,7 @@ pub mod bench;
 pub mod error;
 pub mod histogram;
 pub mod output;
+mod parallel;
 pub mod plan;
 pub mod render;
 pub mod sample;

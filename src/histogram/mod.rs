@@ -26,8 +26,8 @@ pub mod plot;
 pub use overlays::{Curve1D, Marker, Overlays, WidgetBox};
 
 use glam::DVec3;
-use rayon::prelude::*;
 
+use crate::parallel::map_indices;
 use crate::sample::{normalisation_table, GradientMethod, Gradients, Grid, Normalize};
 use crate::scene::{Mode, Scene, Transfer};
 use crate::volume::{Rescale, Volume, VolumeHeader, Voxel, Voxels};
@@ -366,25 +366,24 @@ fn count<T: Voxel>(
         }
     };
     let want_gradient = opts.gradient_max.is_none();
-    let ranges = (z0..=z1)
-        .into_par_iter()
-        .map(|k| {
-            let mut r = Ranges::EMPTY;
-            each_in_slice(k, &mut |i, j, x| {
-                if x.is_finite() {
-                    r.min = r.min.min(x);
-                    r.max = r.max.max(x);
-                    r.counted += 1;
-                    if want_gradient {
-                        r.largest_gradient = r.largest_gradient.max(magnitude(i, j, k));
-                    }
-                } else {
-                    r.non_finite += 1;
+    let slices = map_indices(z1 + 1 - z0, &|dk| {
+        let k = z0 + dk;
+        let mut r = Ranges::EMPTY;
+        each_in_slice(k, &mut |i, j, x| {
+            if x.is_finite() {
+                r.min = r.min.min(x);
+                r.max = r.max.max(x);
+                r.counted += 1;
+                if want_gradient {
+                    r.largest_gradient = r.largest_gradient.max(magnitude(i, j, k));
                 }
-            });
-            r
-        })
-        .reduce(|| Ranges::EMPTY, Ranges::merge);
+            } else {
+                r.non_finite += 1;
+            }
+        });
+        r
+    });
+    let ranges = slices.into_iter().fold(Ranges::EMPTY, Ranges::merge);
     if ranges.counted == 0 {
         return Err(HistogramError::NoFiniteValues(header.source.clone()));
     }
@@ -421,10 +420,12 @@ fn count<T: Voxel>(
     }
     let gradient_range = [0.0, top];
     let (bins, gbins) = (opts.bins, opts.gradient_bins);
-    let empty = || (vec![0u64; bins], vec![0u64; bins * gbins], 0.0f64);
-    let (counts, counts_2d, largest) = (z0..=z1)
-        .into_par_iter()
-        .fold(empty, |(mut c1, mut c2, mut largest), k| {
+    // a few runs of slices per thread, each counted into its own histograms
+    let slices = z1 + 1 - z0;
+    let run = slices.div_ceil(4 * rayon::current_num_threads()).max(1);
+    let parts = map_indices(slices.div_ceil(run), &|r| {
+        let (mut c1, mut c2, mut largest) = (vec![0u64; bins], vec![0u64; bins * gbins], 0.0f64);
+        for k in z0 + r * run..(z0 + (r + 1) * run).min(z1 + 1) {
             each_in_slice(k, &mut |i, j, x| {
                 if x.is_finite() {
                     let g = magnitude(i, j, k);
@@ -437,13 +438,16 @@ fn count<T: Voxel>(
                     c2[gb * bins + vb] += 1;
                 }
             });
-            (c1, c2, largest)
-        })
-        .reduce(empty, |(mut a1, mut a2, la), (b1, b2, lb)| {
-            a1.iter_mut().zip(b1).for_each(|(a, b)| *a += b);
-            a2.iter_mut().zip(b2).for_each(|(a, b)| *a += b);
-            (a1, a2, la.max(lb))
-        });
+        }
+        (c1, c2, largest)
+    });
+    let (mut counts, mut counts_2d, mut largest) =
+        (vec![0u64; bins], vec![0u64; bins * gbins], 0.0f64);
+    for (c1, c2, l) in parts {
+        counts.iter_mut().zip(c1).for_each(|(a, b)| *a += b);
+        counts_2d.iter_mut().zip(c2).for_each(|(a, b)| *a += b);
+        largest = largest.max(l);
+    }
     Ok(Histograms {
         value_range,
         counts,

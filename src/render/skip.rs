@@ -42,6 +42,9 @@ impl Support {
     }
 }
 
+/// Writes the ranges of one voxel row's windows: see [`MacroGrid::build`].
+type RowRanges<'a> = dyn Fn(usize, &[(usize, usize)], &mut [[f32; 2]]) + Sync + 'a;
+
 /// The value range of the field over every macrocell.
 #[derive(Clone, Debug)]
 pub struct MacroGrid {
@@ -77,6 +80,12 @@ impl MacroGrid {
         support: Support,
         rows: impl Fn(usize, &[(usize, usize)], &mut [[f32; 2]]) + Sync,
     ) -> Self {
+        Self::build_rows(n, support, &rows)
+    }
+
+    /// [`MacroGrid::build`] through a dynamic `rows` (one call per voxel row), so
+    /// that the parallel loop is compiled once, not once per voxel type and filter.
+    fn build_rows(n: [usize; 3], support: Support, rows: &RowRanges) -> Self {
         let dims = Self::dims(n);
         let (before, after) = support.reach();
         let window = |c: usize, axis: usize| {

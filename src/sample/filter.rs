@@ -1,7 +1,7 @@
 //! Whole-volume precomputations a pass may need: prefiltered cubic B-spline
 //! coefficients and a gradient volume. Only passes that use them build them.
 
-use rayon::prelude::*;
+use crate::parallel::{for_each_chunk_mut, map_indices};
 
 use super::{GradientMethod, Normalize};
 use crate::volume::{Voxel, Voxels};
@@ -22,15 +22,22 @@ pub fn prefilter_cubic<'a, T: Voxel>(
 
 /// [`prefilter_cubic`] of the voxels whose normalised values are `value(flat index)`.
 pub fn prefilter_normalised(n: [usize; 3], value: impl Fn(usize) -> f32 + Sync) -> Vec<f32> {
-    let mut c: Vec<f64> = (0..n[0] * n[1] * n[2])
-        .into_par_iter()
-        .map(|i| value(i) as f64)
-        .collect();
-    let [nx, ny, nz] = n;
+    let mut c = vec![0.0f64; n[0] * n[1] * n[2]];
+    let slab = n[0] * n[1];
+    for_each_chunk_mut(&mut c, slab, &|k, out| {
+        for (i, v) in out.iter_mut().enumerate() {
+            *v = f64::from(value(k * slab + i));
+        }
+    });
+    prefilter_volume(c, n)
+}
+
+/// The prefilter along x, y and z of the values `c` of an `n` grid, as `f32`.
+fn prefilter_volume(mut c: Vec<f64>, [nx, ny, nz]: [usize; 3]) -> Vec<f32> {
     // x lines are contiguous
-    c.par_chunks_mut(nx).for_each(prefilter_line);
+    for_each_chunk_mut(&mut c, nx, &|_, line| prefilter_line(line));
     // y lines: one z slab at a time
-    c.par_chunks_mut(nx * ny).for_each(|slab| {
+    for_each_chunk_mut(&mut c, nx * ny, &|_, slab| {
         let mut line = vec![0.0; ny];
         for i in 0..nx {
             for (j, l) in line.iter_mut().enumerate() {
@@ -44,14 +51,11 @@ pub fn prefilter_normalised(n: [usize; 3], value: impl Fn(usize) -> f32 + Sync) 
     });
     // z lines: gather columns in parallel, then scatter back
     let sxy = nx * ny;
-    let cols: Vec<Vec<f64>> = (0..sxy)
-        .into_par_iter()
-        .map(|ij| {
-            let mut line: Vec<f64> = (0..nz).map(|k| c[ij + sxy * k]).collect();
-            prefilter_line(&mut line);
-            line
-        })
-        .collect();
+    let cols: Vec<Vec<f64>> = map_indices(sxy, &|ij| {
+        let mut line: Vec<f64> = (0..nz).map(|k| c[ij + sxy * k]).collect();
+        prefilter_line(&mut line);
+        line
+    });
     for (ij, col) in cols.iter().enumerate() {
         for (k, v) in col.iter().enumerate() {
             c[ij + sxy * k] = *v;
@@ -112,10 +116,14 @@ pub fn gradient_volume_normalised(
         let c = |x: isize, m: usize| x.clamp(0, m as isize - 1) as usize;
         value(c(i, nx) + nx * (c(j, ny) + ny * c(k, nz)))
     };
-    (0..nx * ny * nz)
-        .into_par_iter()
-        .map(|idx| grid_gradient(method, n, [idx % nx, (idx / nx) % ny, idx / (nx * ny)], get))
-        .collect()
+    let mut out = vec![[0.0f32; 3]; nx * ny * nz];
+    let slab = nx * ny;
+    for_each_chunk_mut(&mut out, slab, &|k, g| {
+        for (ij, g) in g.iter_mut().enumerate() {
+            *g = grid_gradient(method, n, [ij % nx, ij / nx, k], get);
+        }
+    });
+    out
 }
 
 /// The gradient estimator at one voxel; `get` reads normalised voxels with clamped

@@ -1,9 +1,8 @@
 //! Value statistics of a volume: range, mean and a histogram, ignoring non-finite
 //! voxels (which are counted separately).
 
-use rayon::prelude::*;
-
 use super::{VolumeData, Voxel, Voxels};
+use crate::parallel::map_indices;
 use crate::with_voxels;
 
 /// Number of histogram bins in [`Stats::histogram`].
@@ -56,12 +55,15 @@ impl Stats {
 
 const CHUNK: usize = 1 << 16;
 
-/// The voxels of `v` in consecutive chunks of `CHUNK` (the last one shorter), as a
-/// parallel iterator in index order.
-fn par_chunks<T: Voxel>(v: Voxels<'_, T>) -> impl IndexedParallelIterator<Item = Voxels<'_, T>> {
-    (0..v.len().div_ceil(CHUNK))
-        .into_par_iter()
-        .map(move |c| v.slice(c * CHUNK..((c + 1) * CHUNK).min(v.len())))
+/// `f` of each of the consecutive chunks of `CHUNK` voxels of `v` (the last one
+/// shorter), computed in parallel, in index order.
+fn map_chunks<T: Voxel, R: Send>(
+    v: Voxels<'_, T>,
+    f: &(dyn Fn(Voxels<'_, T>) -> R + Sync),
+) -> Vec<R> {
+    map_indices(v.len().div_ceil(CHUNK), &|c| {
+        f(v.slice(c * CHUNK..((c + 1) * CHUNK).min(v.len())))
+    })
 }
 
 /// Partial sums of one chunk.
@@ -125,15 +127,13 @@ fn acc_small_int<T: Voxel>(c: Voxels<'_, T>) -> Acc {
 
 fn stats_of<T: Voxel>(v: Voxels<'_, T>, small_int_path: bool) -> Stats {
     let small_int = small_int_path && T::LUT_SIZE > 0;
-    let parts: Vec<Acc> = par_chunks(v)
-        .map(|c| {
-            if small_int {
-                acc_small_int(c)
-            } else {
-                acc_f64(c)
-            }
-        })
-        .collect();
+    let parts: Vec<Acc> = map_chunks(v, &|c| {
+        if small_int {
+            acc_small_int(c)
+        } else {
+            acc_f64(c)
+        }
+    });
     let mut t = EMPTY;
     for p in parts {
         t.min = t.min.min(p.min);
@@ -167,9 +167,13 @@ fn stats_of<T: Voxel>(v: Voxels<'_, T>, small_int_path: bool) -> Stats {
     } else {
         Vec::new()
     };
-    let histogram = par_chunks(v)
-        .map(|c| {
-            let mut h = vec![0u64; HISTOGRAM_BINS];
+    // a few runs of chunks per thread, each counted into its own histogram
+    let chunks = v.len().div_ceil(CHUNK);
+    let run = chunks.div_ceil(4 * rayon::current_num_threads()).max(1);
+    let parts = map_indices(chunks.div_ceil(run), &|r| {
+        let mut h = [0u64; HISTOGRAM_BINS];
+        for c in r * run..((r + 1) * run).min(chunks) {
+            let c = v.slice(c * CHUNK..((c + 1) * CHUNK).min(v.len()));
             if small_int {
                 for x in c.iter() {
                     h[usize::from(bins[x.lut_index()])] += 1;
@@ -182,15 +186,13 @@ fn stats_of<T: Voxel>(v: Voxels<'_, T>, small_int_path: bool) -> Stats {
                     }
                 }
             }
-            h
-        })
-        .reduce(
-            || vec![0u64; HISTOGRAM_BINS],
-            |mut a, b| {
-                a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
-                a
-            },
-        );
+        }
+        h
+    });
+    let mut histogram = vec![0u64; HISTOGRAM_BINS];
+    for h in parts {
+        histogram.iter_mut().zip(h).for_each(|(x, y)| *x += y);
+    }
     Stats {
         min: lo,
         max: hi,
