@@ -366,7 +366,7 @@ fn count<T: Voxel>(
         }
     };
     let want_gradient = opts.gradient_max.is_none();
-    let slices = map_indices(z1 + 1 - z0, &|dk| {
+    let slices = map_indices((z1 + 1).saturating_sub(z0), &|dk| {
         let k = z0 + dk;
         let mut r = Ranges::EMPTY;
         each_in_slice(k, &mut |i, j, x| {
@@ -421,7 +421,7 @@ fn count<T: Voxel>(
     let gradient_range = [0.0, top];
     let (bins, gbins) = (opts.bins, opts.gradient_bins);
     // a few runs of slices per thread, each counted into its own histograms
-    let slices = z1 + 1 - z0;
+    let slices = (z1 + 1).saturating_sub(z0);
     let run = slices.div_ceil(4 * rayon::current_num_threads()).max(1);
     let parts = map_indices(slices.div_ceil(run), &|r| {
         let (mut c1, mut c2, mut largest) = (vec![0u64; bins], vec![0u64; bins * gbins], 0.0f64);

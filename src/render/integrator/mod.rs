@@ -219,9 +219,9 @@ struct Batch {
 
 /// Samples per [`Batch`]: enough to amortise a call into the vector path (its
 /// constants and the tail of fewer than eight samples), few enough that a ray
-/// stopping early wastes little. Measured (README "Performance"): 64 took 0.8-0.87x
-/// the time of 16 for X-ray frames and 0.9-0.96x for composite ones, and made no
-/// difference to MIP and iso-surface frames, whose runs are shorter.
+/// stopping early wastes little. Measured (`bench/peers/README.md`, "batches of
+/// 64"): 64 took 0.79-0.81x the time of 16 for X-ray frames and 0.85-0.96x for
+/// composite ones, and made no difference to MIP and iso-surface frames.
 const BATCH: usize = 64;
 
 impl Default for Batch {
