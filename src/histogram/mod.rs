@@ -27,7 +27,7 @@ pub use overlays::{Curve1D, Marker, Overlays, WidgetBox};
 
 use glam::DVec3;
 
-use crate::parallel::map_indices;
+use crate::parallel::{map_indices, map_runs};
 use crate::sample::{normalisation_table, GradientMethod, Gradients, Grid, Normalize};
 use crate::scene::{Mode, Scene, Transfer};
 use crate::volume::{Rescale, Volume, VolumeHeader, Voxel, Voxels};
@@ -421,11 +421,9 @@ fn count<T: Voxel>(
     let gradient_range = [0.0, top];
     let (bins, gbins) = (opts.bins, opts.gradient_bins);
     // a few runs of slices per thread, each counted into its own histograms
-    let slices = (z1 + 1).saturating_sub(z0);
-    let run = slices.div_ceil(4 * rayon::current_num_threads()).max(1);
-    let parts = map_indices(slices.div_ceil(run), &|r| {
+    let parts = map_runs((z1 + 1).saturating_sub(z0), &|run| {
         let (mut c1, mut c2, mut largest) = (vec![0u64; bins], vec![0u64; bins * gbins], 0.0f64);
-        for k in z0 + r * run..(z0 + (r + 1) * run).min(z1 + 1) {
+        for k in z0 + run.start..z0 + run.end {
             each_in_slice(k, &mut |i, j, x| {
                 if x.is_finite() {
                     let g = magnitude(i, j, k);

@@ -7,13 +7,12 @@
 //! view and the pixel, so the image is the same whatever the thread count or the
 //! order in which bands finish.
 
-use rayon::prelude::*;
-
 use super::clip::{clip_ray, ClipPlane};
 use super::integrator::{jitter_fraction, Counts, Integrand, PixelRay};
 use super::march::March;
 use super::skip::MacroGrid;
 use super::{IndexFrame, View};
+use crate::parallel::map_chunks_mut;
 use crate::sample::Field;
 use crate::scene::Projection;
 
@@ -72,25 +71,6 @@ pub struct Kernel<'a, F: Field, I: Integrand> {
     pub clips: &'a [ClipPlane],
 }
 
-/// Runs `band(b, rows)` on the bands of `band_len` values of `data` (band `b` is
-/// `data[b * band_len..]`, the last one possibly shorter) in parallel, and sums
-/// their counts. Not generic, so rayon's machinery is compiled once rather than once
-/// per (voxel type, filter, mode): a dynamic call per band costs nothing next to a
-/// band's rays.
-fn render_bands(
-    data: &mut [f32],
-    band_len: usize,
-    band: &(dyn Fn(usize, &mut [f32]) -> Counts + Sync),
-) -> Counts {
-    data.par_chunks_mut(band_len.max(1))
-        .enumerate()
-        .map(|(b, rows)| band(b, rows))
-        .reduce(Counts::default, |mut a, b| {
-            a += b;
-            a
-        })
-}
-
 /// A pass ready to render views, with its types erased.
 pub trait RenderView: Sync {
     /// Channels per pixel of its films.
@@ -136,7 +116,12 @@ impl<F: Field, I: Integrand> RenderView for Kernel<'_, F, I> {
             }
             counts
         };
-        let counts = render_bands(&mut film.data, TILE * row_len, &band);
+        // through `&dyn Fn` (`crate::parallel`), so that rayon is compiled once, not
+        // once per (voxel type, filter, mode)
+        let mut counts = Counts::default();
+        for c in map_chunks_mut(&mut film.data, TILE * row_len, &band) {
+            counts += c;
+        }
         (film, counts)
     }
 

@@ -15,7 +15,7 @@
 //! the cell's samples; the samples it does take are those of the unskipped march,
 //! so the image is the same (bit for bit: see the tests that compare both).
 
-use rayon::prelude::*;
+use crate::parallel::map_indices;
 
 use super::ray::IndexRay;
 
@@ -101,37 +101,34 @@ impl MacroGrid {
             ]
         };
         const EMPTY: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
-        let slabs: Vec<Vec<[f32; 2]>> = (0..dims[2])
-            .into_par_iter()
-            .map(|ck| {
-                let (z0, z1) = window(ck, 2);
-                let nz = z1 - z0 + 1;
-                // along x: per (z, y) row, per macrocell column
-                let windows: Vec<(usize, usize)> = (0..dims[0]).map(|c| window(c, 0)).collect();
-                let mut ranges = vec![EMPTY; nz * n[1] * dims[0]];
-                for z in 0..nz {
-                    for y in 0..n[1] {
-                        let out = &mut ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
-                        rows(sx * y + sxy * (z0 + z), &windows, out);
-                    }
+        let slabs: Vec<Vec<[f32; 2]>> = map_indices(dims[2], &|ck| {
+            let (z0, z1) = window(ck, 2);
+            let nz = z1 - z0 + 1;
+            // along x: per (z, y) row, per macrocell column
+            let windows: Vec<(usize, usize)> = (0..dims[0]).map(|c| window(c, 0)).collect();
+            let mut ranges = vec![EMPTY; nz * n[1] * dims[0]];
+            for z in 0..nz {
+                for y in 0..n[1] {
+                    let out = &mut ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
+                    rows(sx * y + sxy * (z0 + z), &windows, out);
                 }
-                // along y, then z
-                let mut cells = vec![EMPTY; dims[0] * dims[1]];
-                for cj in 0..dims[1] {
-                    let (y0, y1) = window(cj, 1);
-                    for z in 0..nz {
-                        for y in y0..=y1 {
-                            let row = &ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
-                            let out = &mut cells[cj * dims[0]..][..dims[0]];
-                            for (o, &r) in out.iter_mut().zip(row) {
-                                *o = union(*o, r);
-                            }
+            }
+            // along y, then z
+            let mut cells = vec![EMPTY; dims[0] * dims[1]];
+            for cj in 0..dims[1] {
+                let (y0, y1) = window(cj, 1);
+                for z in 0..nz {
+                    for y in y0..=y1 {
+                        let row = &ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
+                        let out = &mut cells[cj * dims[0]..][..dims[0]];
+                        for (o, &r) in out.iter_mut().zip(row) {
+                            *o = union(*o, r);
                         }
                     }
                 }
-                cells.into_iter().map(|[lo, hi]| widen(lo, hi)).collect()
-            })
-            .collect();
+            }
+            cells.into_iter().map(|[lo, hi]| widen(lo, hi)).collect()
+        });
         MacroGrid {
             dims,
             ranges: slabs.into_iter().flatten().collect(),

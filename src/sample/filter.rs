@@ -1,7 +1,7 @@
 //! Whole-volume precomputations a pass may need: prefiltered cubic B-spline
 //! coefficients and a gradient volume. Only passes that use them build them.
 
-use crate::parallel::{for_each_chunk_mut, map_indices};
+use crate::parallel::{map_chunks_mut, map_indices};
 
 use super::{GradientMethod, Normalize};
 use crate::volume::{Voxel, Voxels};
@@ -24,7 +24,7 @@ pub fn prefilter_cubic<'a, T: Voxel>(
 pub fn prefilter_normalised(n: [usize; 3], value: impl Fn(usize) -> f32 + Sync) -> Vec<f32> {
     let mut c = vec![0.0f64; n[0] * n[1] * n[2]];
     let slab = n[0] * n[1];
-    for_each_chunk_mut(&mut c, slab, &|k, out| {
+    map_chunks_mut(&mut c, slab, &|k, out| {
         for (i, v) in out.iter_mut().enumerate() {
             *v = f64::from(value(k * slab + i));
         }
@@ -35,9 +35,9 @@ pub fn prefilter_normalised(n: [usize; 3], value: impl Fn(usize) -> f32 + Sync) 
 /// The prefilter along x, y and z of the values `c` of an `n` grid, as `f32`.
 fn prefilter_volume(mut c: Vec<f64>, [nx, ny, nz]: [usize; 3]) -> Vec<f32> {
     // x lines are contiguous
-    for_each_chunk_mut(&mut c, nx, &|_, line| prefilter_line(line));
+    map_chunks_mut(&mut c, nx, &|_, line| prefilter_line(line));
     // y lines: one z slab at a time
-    for_each_chunk_mut(&mut c, nx * ny, &|_, slab| {
+    map_chunks_mut(&mut c, nx * ny, &|_, slab| {
         let mut line = vec![0.0; ny];
         for i in 0..nx {
             for (j, l) in line.iter_mut().enumerate() {
@@ -118,7 +118,7 @@ pub fn gradient_volume_normalised(
     };
     let mut out = vec![[0.0f32; 3]; nx * ny * nz];
     let slab = nx * ny;
-    for_each_chunk_mut(&mut out, slab, &|k, g| {
+    map_chunks_mut(&mut out, slab, &|k, g| {
         for (ij, g) in g.iter_mut().enumerate() {
             *g = grid_gradient(method, n, [ij % nx, ij / nx, k], get);
         }

@@ -2,7 +2,7 @@
 //! voxels (which are counted separately).
 
 use super::{VolumeData, Voxel, Voxels};
-use crate::parallel::map_indices;
+use crate::parallel::{map_indices, map_runs};
 use crate::with_voxels;
 
 /// Number of histogram bins in [`Stats::histogram`].
@@ -168,11 +168,9 @@ fn stats_of<T: Voxel>(v: Voxels<'_, T>, small_int_path: bool) -> Stats {
         Vec::new()
     };
     // a few runs of chunks per thread, each counted into its own histogram
-    let chunks = v.len().div_ceil(CHUNK);
-    let run = chunks.div_ceil(4 * rayon::current_num_threads()).max(1);
-    let parts = map_indices(chunks.div_ceil(run), &|r| {
+    let parts = map_runs(v.len().div_ceil(CHUNK), &|run| {
         let mut h = [0u64; HISTOGRAM_BINS];
-        for c in r * run..((r + 1) * run).min(chunks) {
+        for c in run {
             let c = v.slice(c * CHUNK..((c + 1) * CHUNK).min(v.len()));
             if small_int {
                 for x in c.iter() {
