@@ -4,9 +4,10 @@
 //!
 //! A macrocell covers [`MACROCELL`] voxel cells per axis. Its range is the min and
 //! max of the values the pass's filter reads anywhere in the cell (the voxels of
-//! the cell plus the filter's support beyond it, and one voxel more, so that a
-//! sample a round-off outside the cell is still covered), widened by a few ulps
-//! for the round-off of interpolation. Every filter volcast has is a weighted
+//! the cell plus the filter's support beyond it), widened by a few ulps for the
+//! round-off of interpolation, and so that a sample a round-off outside the cell is
+//! still covered: by `ROUND_OFF_REACH` for trilinear and nearest filters (see
+//! `cell_range`), by one voxel more of support for the B-splines. Every filter volcast has is a weighted
 //! average with non-negative weights of the values it reads (trilinear, the
 //! B-splines) or one of them (nearest), so no sample in the cell lies outside that
 //! range. An integrator that can tell from a range that no sample in a cell can
@@ -40,6 +41,65 @@ impl Support {
             Support::Cubic => (2, 3),
         }
     }
+
+    /// Voxels read beyond each side of a cell, without the margin, where
+    /// [`cell_range`] bounds what a sample a round-off outside the cell reads from
+    /// beyond them: a trilinear sample's weight on a voxel it is a round-off away
+    /// from is that round-off (nearest reads no such voxel). The B-splines keep
+    /// their margin.
+    fn tight_reach(self) -> Option<(usize, usize)> {
+        match self {
+            Support::Linear => Some((0, 0)),
+            Support::Cubic => None,
+        }
+    }
+}
+
+/// The most a sample a round-off outside its macrocell can differ from one on the
+/// cell's face, in normalised values: 2^-14.
+///
+/// A sample belongs to a cell when its parameter lies in the cell's span of the
+/// walk: before the ray's crossing into the next cell, both computed in f64 from
+/// the ray's origin, and the first span's cell is the one a point a little after
+/// the entry lies in (`Walk::new`: 10^-9 of the ray's length). For the rays the
+/// renderer skips with ([`rounds_off_inside`]: origin within 2^31 voxels of index
+/// 0, at most 2^15 voxels long), a sample is within 2^-18.5 voxels of its cell by
+/// round-off, and within 3.3 10^-5 voxels by the entry's offset: under 2^-14 in
+/// all. A trilinear sample's weight on a voxel beyond the cell's is at most that
+/// distance, and values are normalised to [0, 1], so the sample moves by at most
+/// that much.
+const ROUND_OFF_REACH: f32 = 1.0 / 16384.0;
+
+/// Whether the ray `o + d t`, `t` from `t_enter` to `t_exit` (index space), is one
+/// for which the bound of `ROUND_OFF_REACH` (2^-14) holds: its origin within 2^31 voxels
+/// of index 0 along each axis (the volume's sizes are below 2^31) and its length at
+/// most 2^15 voxels.
+#[inline(always)]
+pub fn rounds_off_inside(o: [f64; 3], d: [f64; 3], t_enter: f64, t_exit: f64) -> bool {
+    const ORIGIN: f64 = (1u64 << 31) as f64;
+    const LENGTH: f64 = (1u64 << 15) as f64;
+    let length = (t_exit - t_enter) * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    o.iter().all(|x| x.abs() <= ORIGIN) && length <= LENGTH
+}
+
+/// A macrocell's range from `margin`, the values its filter reads with one voxel of
+/// margin, and `tight`, those it reads without it (the same window for a filter
+/// without a tight one), each widened for interpolation's round-off: where
+/// `margin` is all zero, that (an exact zero stays exact, so all-zero cells are
+/// passed over); else `margin` narrowed to `tight` give or take
+/// [`ROUND_OFF_REACH`]. Both bound every sample in the cell, and so does their
+/// intersection; the tight one is often far narrower at the edge of an object (a
+/// window of 9^3 voxels instead of 11^3, on trilinear grids).
+fn cell_range(margin: [f32; 2], tight: [f32; 2]) -> [f32; 2] {
+    let [m_lo, m_hi] = widen(margin[0], margin[1]);
+    if m_hi <= 0.0 {
+        return [m_lo, m_hi];
+    }
+    let [t_lo, t_hi] = widen(tight[0], tight[1]);
+    [
+        m_lo.max(t_lo - ROUND_OFF_REACH),
+        m_hi.min(t_hi + ROUND_OFF_REACH),
+    ]
 }
 
 /// Writes the ranges of one voxel row's windows: see [`MacroGrid::build`].
@@ -85,10 +145,19 @@ impl MacroGrid {
 
     /// [`MacroGrid::build`] through a dynamic `rows` (one call per voxel row), so
     /// that the parallel loop is compiled once, not once per voxel type and filter.
+    /// Each cell's range is found twice, over the support with its margin and over
+    /// the support alone (trilinear filters), and combined by [`cell_range`].
     fn build_rows(n: [usize; 3], support: Support, rows: &RowRanges) -> Self {
         let dims = Self::dims(n);
         let (before, after) = support.reach();
-        let window = |c: usize, axis: usize| {
+        let tight = support.tight_reach();
+        // the voxel window of cell `c` along `axis`, with the margin (`margin`) or
+        // without it (the margin's window when the filter has no tight one)
+        let window = |c: usize, axis: usize, margin: bool| {
+            let (before, after) = match tight {
+                Some(reach) if !margin => reach,
+                _ => (before, after),
+            };
             let lo = (c * MACROCELL).saturating_sub(before);
             let hi = ((c + 1) * MACROCELL + after).min(n[axis] - 1);
             (lo, hi)
@@ -101,33 +170,48 @@ impl MacroGrid {
             ]
         };
         const EMPTY: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
+        let d0 = dims[0];
         let slabs: Vec<Vec<[f32; 2]>> = map_indices(dims[2], &|ck| {
-            let (z0, z1) = window(ck, 2);
+            let (z0, z1) = window(ck, 2, true);
             let nz = z1 - z0 + 1;
-            // along x: per (z, y) row, per macrocell column
-            let windows: Vec<(usize, usize)> = (0..dims[0]).map(|c| window(c, 0)).collect();
-            let mut ranges = vec![EMPTY; nz * n[1] * dims[0]];
+            // along x: per (z, y) row, per macrocell column, the windows with the
+            // margin, then those without
+            let windows: Vec<(usize, usize)> = [true, false]
+                .iter()
+                .flat_map(|&m| (0..d0).map(move |c| window(c, 0, m)))
+                .collect();
+            let w = 2 * d0;
+            let mut ranges = vec![EMPTY; nz * n[1] * w];
             for z in 0..nz {
                 for y in 0..n[1] {
-                    let out = &mut ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
+                    let out = &mut ranges[(z * n[1] + y) * w..][..w];
                     rows(sx * y + sxy * (z0 + z), &windows, out);
                 }
             }
-            // along y, then z
-            let mut cells = vec![EMPTY; dims[0] * dims[1]];
-            for cj in 0..dims[1] {
-                let (y0, y1) = window(cj, 1);
-                for z in 0..nz {
-                    for y in y0..=y1 {
-                        let row = &ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
-                        let out = &mut cells[cj * dims[0]..][..dims[0]];
-                        for (o, &r) in out.iter_mut().zip(row) {
-                            *o = union(*o, r);
+            // along y, then z, each kind over its own windows
+            let mut cells = vec![EMPTY; d0 * dims[1]];
+            let mut tights = vec![EMPTY; d0 * dims[1]];
+            for (m, out) in [(true, &mut cells), (false, &mut tights)] {
+                let (zt0, zt1) = window(ck, 2, m);
+                let column = if m { 0 } else { d0 };
+                for cj in 0..dims[1] {
+                    let (y0, y1) = window(cj, 1, m);
+                    for z in zt0 - z0..=zt1 - z0 {
+                        for y in y0..=y1 {
+                            let row = &ranges[(z * n[1] + y) * w + column..][..d0];
+                            let out = &mut out[cj * d0..][..d0];
+                            for (o, &r) in out.iter_mut().zip(row) {
+                                *o = union(*o, r);
+                            }
                         }
                     }
                 }
             }
-            cells.into_iter().map(|[lo, hi]| widen(lo, hi)).collect()
+            cells
+                .into_iter()
+                .zip(tights)
+                .map(|(m, t)| cell_range(m, t))
+                .collect()
         });
         MacroGrid {
             dims,
@@ -348,21 +432,124 @@ mod tests {
 
     #[test]
     fn ranges_cover_the_support() {
-        // a single bright voxel at (9, 0, 0) of a 20 x 2 x 2 grid: macrocell 0 covers
-        // cells 0..8 (voxels 0..=8) plus one voxel of margin (9); macrocell 1 covers
-        // voxels 7..=17, macrocell 2 voxels 15..=19
+        // a single bright voxel at (9, 0, 0) of a 20 x 2 x 2 grid: macrocell 0 reads
+        // voxels 0..=8, plus one voxel of margin (9), of which a sample a round-off
+        // outside it reads at most that round-off; macrocell 1 reads voxels 8..=16,
+        // macrocell 2 voxels 16..=19
         let n = [20, 2, 2];
         let value = |i: usize| if i == 9 { 1.0 } else { 0.0 };
         let g = MacroGrid::from_values(n, Support::Linear, value);
         assert_eq!(g.cell_dims(), [3, 1, 1]);
-        assert_eq!(g.range(0), [0.0, 1.0]);
+        assert_eq!(g.range(0), [0.0, ROUND_OFF_REACH]);
         assert_eq!(g.range(1), [0.0, 1.0]);
         assert_eq!(g.range(2), [0.0, 0.0]);
+        // the bright voxel at 7: in macrocell 0's support, in macrocell 1's margin
+        let value = |i: usize| if i == 7 { 1.0 } else { 0.0 };
+        let g = MacroGrid::from_values(n, Support::Linear, value);
+        assert_eq!(g.range(0), [0.0, 1.0]);
+        assert_eq!(g.range(1), [0.0, ROUND_OFF_REACH]);
+        // an all-zero support keeps its exact zero only if the margin is zero too;
+        // values inside the support are exact (widened by ulps)
+        let value = |i: usize| if i == 9 { 1.0 } else { 0.5 };
+        let g = MacroGrid::from_values(n, Support::Linear, value);
+        let (margin, tight) = (widen(0.5, 1.0), widen(0.5, 0.5));
+        assert_eq!(g.range(0), [margin[0], tight[1] + ROUND_OFF_REACH]);
+        let g = MacroGrid::from_values(n, Support::Cubic, value);
+        assert_eq!(
+            g.range(0),
+            widen(0.5, 1.0),
+            "the B-splines keep their margin"
+        );
+        let value = |i: usize| if i == 9 { 1.0 } else { 0.0 };
         let g = MacroGrid::from_values(n, Support::Cubic, value);
         assert!(g.range(2)[1] == 0.0, "voxels 14..=19 for the cubic support");
         let value = |i: usize| if i == 14 { 1.0 } else { 0.0 };
         let g = MacroGrid::from_values(n, Support::Cubic, value);
         assert!(g.range(2)[1] > 0.0);
+    }
+
+    /// The samples a ray takes in a macrocell's span lie in the cell's range, also
+    /// those a round-off beyond its face (where the range of its support alone would
+    /// not hold them).
+    #[test]
+    fn samples_a_round_off_beyond_a_face_stay_in_the_range() {
+        use crate::sample::{Field, GradientMethod, Interpolation, Normalize, Sampler};
+        // a fixed pseudo-random sequence in [0, 1) (xorshift64)
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut random = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let n = [33, 17, 17];
+        // ones on the plane x = 9, just beyond macrocell 0's support (voxels 0..=8),
+        // or on x = 7, just before macrocell 1's (8..=16); zeros elsewhere
+        for (plane, cell, side) in [(9, 0, 1.0), (7, 1, -1.0)] {
+            let v: Vec<f32> = (0..n[0] * n[1] * n[2])
+                .map(|i| if i % n[0] == plane { 1.0 } else { 0.0 })
+                .collect();
+            let field = Sampler::new(
+                &v[..],
+                n,
+                Normalize::new(0.0, 1.0),
+                Interpolation::Trilinear,
+                None,
+                GradientMethod::Central,
+                None,
+                glam::DMat3::IDENTITY,
+            );
+            let g = MacroGrid::from_values(n, Support::Linear, |i| v[i]);
+            assert!(g.range(cell)[1] < 1e-3, "the plane is outside the support");
+            // rays crossing x = 8 either way: every sample of a span in its range
+            let mut checked = 0;
+            for k in 0..2000 {
+                let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+                let d =
+                    DVec3::new(sign * (0.2 + random()), random() - 0.5, random() - 0.5).normalize();
+                let o = DVec3::new(
+                    8.0 - sign * (1.0 + 3.0 * random()),
+                    4.0 + 8.0 * random(),
+                    4.0 + 8.0 * random(),
+                );
+                let ray = IndexRay { o, d };
+                for span in g.walk(&ray, 0.0, 12.0) {
+                    // the first parameters before the span's end, and one inside it
+                    let before_end = |ulps: u64| f64::from_bits(span.t1.to_bits() - ulps);
+                    let mid = 0.5 * (span.t0 + span.t1);
+                    for t in [span.t0, mid, before_end(1), before_end(2), before_end(4)] {
+                        if t < span.t0 || (t >= span.t1 && !span.last) {
+                            continue;
+                        }
+                        let p = ray.at(t);
+                        let f = field.value(p);
+                        let [lo, hi] = g.range(span.cell);
+                        assert!(lo <= f && f <= hi, "{f:e} outside {lo:e}..{hi:e} at {p}");
+                        checked += 1;
+                    }
+                }
+            }
+            assert!(checked > 5_000);
+            // the bound itself: samples up to 2^-14 voxels (the most round-off and the
+            // walk's entry put them there: see ROUND_OFF_REACH) beyond the cell's
+            // face, towards the plane, read it with that weight and stay in the
+            // cell's range
+            let mut leaked = 0;
+            for e in [-50, -40, -30, -20, -15] {
+                let x = 8.0 + side * 1.9 * 2f64.powi(e);
+                for (y, z) in [(4.0, 4.0), (4.3, 5.7), (6.99, 4.01)] {
+                    let f = field.value(DVec3::new(x, y, z));
+                    let [lo, hi] = g.range(cell);
+                    assert!(
+                        lo <= f && f <= hi,
+                        "{f:e} outside {lo:e}..{hi:e} at x = {x}"
+                    );
+                    leaked += usize::from(f > 0.0);
+                }
+            }
+            // the case this is about does occur
+            assert!(leaked > 0);
+        }
     }
 
     #[test]
