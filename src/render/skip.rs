@@ -7,8 +7,8 @@
 //! the cell plus the filter's support beyond it), widened by a few ulps for the
 //! round-off of interpolation, and so that a sample a round-off outside the cell is
 //! still covered: by `ROUND_OFF_REACH` for trilinear and nearest filters (see
-//! `cell_range`), by one voxel more of support for the B-splines. Every filter volcast has is a weighted
-//! average with non-negative weights of the values it reads (trilinear, the
+//! `cell_range`), by one voxel more of support for the B-splines. Every filter
+//! volcast has is a weighted average with non-negative weights of the values it reads (trilinear, the
 //! B-splines) or one of them (nearest), so no sample in the cell lies outside that
 //! range. An integrator that can tell from a range that no sample in a cell can
 //! change its result (the transfer function is transparent over it, it cannot beat
@@ -175,12 +175,17 @@ impl MacroGrid {
             let (z0, z1) = window(ck, 2, true);
             let nz = z1 - z0 + 1;
             // along x: per (z, y) row, per macrocell column, the windows with the
-            // margin, then those without
-            let windows: Vec<(usize, usize)> = [true, false]
+            // margin, then those without (when they differ)
+            let kinds: &[bool] = if tight.is_some() {
+                &[true, false]
+            } else {
+                &[true]
+            };
+            let windows: Vec<(usize, usize)> = kinds
                 .iter()
                 .flat_map(|&m| (0..d0).map(move |c| window(c, 0, m)))
                 .collect();
-            let w = 2 * d0;
+            let w = windows.len();
             let mut ranges = vec![EMPTY; nz * n[1] * w];
             for z in 0..nz {
                 for y in 0..n[1] {
@@ -191,7 +196,8 @@ impl MacroGrid {
             // along y, then z, each kind over its own windows
             let mut cells = vec![EMPTY; d0 * dims[1]];
             let mut tights = vec![EMPTY; d0 * dims[1]];
-            for (m, out) in [(true, &mut cells), (false, &mut tights)] {
+            let kinds = kinds.iter().zip([&mut cells, &mut tights]);
+            for (&m, out) in kinds {
                 let (zt0, zt1) = window(ck, 2, m);
                 let column = if m { 0 } else { d0 };
                 for cj in 0..dims[1] {
@@ -206,6 +212,10 @@ impl MacroGrid {
                         }
                     }
                 }
+            }
+            if tight.is_none() {
+                // the same windows: the same ranges
+                tights.clone_from(&cells);
             }
             cells
                 .into_iter()
