@@ -10,7 +10,7 @@
 use super::clip::{clip_ray, ClipPlane};
 use super::integrator::{jitter_fraction, Counts, Integrand, PixelRay};
 use super::march::March;
-use super::skip::{rounds_off_inside, MacroGrid};
+use super::skip::MacroGrid;
 use super::{IndexFrame, View};
 use crate::parallel::map_chunks_mut;
 use crate::sample::Field;
@@ -161,10 +161,10 @@ impl<F: Field, I: Integrand> RenderView for Kernel<'_, F, I> {
             jitter_fraction(seed, [e.x, e.y, e.z, f.x, f.y, f.z], i, j)
         });
         let march = March::jittered(t_enter, t_exit, self.dt, jitter);
-        // the macrocell ranges bound the samples of rays from near the grid
-        let grid = self
-            .grid
-            .filter(|_| rounds_off_inside(index.o.to_array(), index.d.to_array(), t_enter, t_exit));
+        // the grid's ranges hold for this ray's samples (for every ray but those far
+        // from a grid without the margin)
+        let (o, d) = (index.o.to_array(), index.d.to_array());
+        let grid = self.grid.filter(|g| g.bounds(o, d, t_enter, t_exit));
         Some(self.integrand.trace(&self.field, &pixel_ray, &march, grid))
     }
 }

@@ -232,9 +232,20 @@ impl RenderPass {
                 .filter(|g| *g != GradientMethod::Analytic),
             _ => None,
         };
+        // X-ray and the average skip all-zero cells, whose ranges must be exact
+        // zeros; the other modes take the narrower ranges without the margin
+        let exact_zeros = matches!(
+            mode,
+            ModeSpec::Xray(_)
+                | ModeSpec::Average
+                | ModeSpec::Exact(Exact::Xray { .. } | Exact::Average)
+        );
         let grid = skip.then_some(match interpolation {
-            Interpolation::Nearest | Interpolation::Trilinear => {
+            Interpolation::Nearest | Interpolation::Trilinear if exact_zeros => {
                 GridSource::Voxels(Support::Linear)
+            }
+            Interpolation::Nearest | Interpolation::Trilinear => {
+                GridSource::Voxels(Support::LinearTight)
             }
             Interpolation::BSpline => GridSource::Voxels(Support::Cubic),
             Interpolation::Cubic => GridSource::Coefficients,

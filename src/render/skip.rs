@@ -6,9 +6,10 @@
 //! max of the values the pass's filter reads anywhere in the cell (the voxels of
 //! the cell plus the filter's support beyond it), widened by a few ulps for the
 //! round-off of interpolation, and so that a sample a round-off outside the cell is
-//! still covered: by `ROUND_OFF_REACH` for trilinear and nearest filters (see
-//! `cell_range`), by one voxel more of support for the B-splines. Every filter
-//! volcast has is a weighted average with non-negative weights of the values it reads (trilinear, the
+//! still covered: by one voxel more of support, or, for the modes that need no
+//! exact zeros on trilinear and nearest passes, by `ROUND_OFF_REACH` (see
+//! [`Support::LinearTight`]). Every filter volcast has is a weighted average with
+//! non-negative weights of the values it reads (trilinear, the
 //! B-splines) or one of them (nearest), so no sample in the cell lies outside that
 //! range. An integrator that can tell from a range that no sample in a cell can
 //! change its result (the transfer function is transparent over it, it cannot beat
@@ -27,30 +28,44 @@ pub const MACROCELL: usize = 8;
 /// ranges must include.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Support {
-    /// Nearest and trilinear: the cell's own corner voxels.
+    /// Nearest and trilinear: the cell's own corner voxels, and one voxel of margin
+    /// on each side, so that a sample a round-off outside the cell is covered and
+    /// a cell whose range is zero holds only exact zeros (X-ray and average skip
+    /// such cells, and must add nothing where they do).
     Linear,
-    /// The cubic B-splines: one voxel before and two after.
+    /// Nearest and trilinear for the modes that need no exact zeros: the cell's own
+    /// corner voxels only, the range widened by `ROUND_OFF_REACH` instead (see
+    /// [`Support::cell_range`]). Often far narrower at the edge of an object (a
+    /// window of 9^3 voxels instead of 11^3).
+    LinearTight,
+    /// The cubic B-splines: one voxel before and two after, and the margin.
     Cubic,
 }
 
 impl Support {
-    /// Voxels read beyond each side of a cell, plus the one voxel of margin.
+    /// Voxels read beyond each side of a cell, plus the margin where there is one.
     fn reach(self) -> (usize, usize) {
         match self {
             Support::Linear => (1, 1),
+            Support::LinearTight => (0, 0),
             Support::Cubic => (2, 3),
         }
     }
 
-    /// Voxels read beyond each side of a cell, without the margin, where
-    /// [`cell_range`] bounds what a sample a round-off outside the cell reads from
-    /// beyond them: a trilinear sample's weight on a voxel it is a round-off away
-    /// from is that round-off (nearest reads no such voxel). The B-splines keep
-    /// their margin.
-    fn tight_reach(self) -> Option<(usize, usize)> {
+    /// A macrocell's range from the min and max of the values the filter reads
+    /// over [`Support::reach`]: widened by a few ulps for interpolation's
+    /// round-off, and for [`Support::LinearTight`] by `ROUND_OFF_REACH` more (kept in
+    /// [0, 1]), which bounds what a sample a round-off outside the cell reads from
+    /// the voxels beyond it: a trilinear sample's weight on a voxel it is a
+    /// round-off away from is that round-off (nearest reads no such voxel).
+    fn cell_range(self, lo: f32, hi: f32) -> [f32; 2] {
+        let [lo, hi] = widen(lo, hi);
         match self {
-            Support::Linear => Some((0, 0)),
-            Support::Cubic => None,
+            Support::LinearTight => [
+                (lo - ROUND_OFF_REACH).max(0.0),
+                (hi + ROUND_OFF_REACH).min(1.0),
+            ],
+            _ => [lo, hi],
         }
     }
 }
@@ -71,35 +86,15 @@ impl Support {
 const ROUND_OFF_REACH: f32 = 1.0 / 16384.0;
 
 /// Whether the ray `o + d t`, `t` from `t_enter` to `t_exit` (index space), is one
-/// for which the bound of `ROUND_OFF_REACH` (2^-14) holds: its origin within 2^31 voxels
-/// of index 0 along each axis (the volume's sizes are below 2^31) and its length at
-/// most 2^15 voxels.
+/// for which the bound of `ROUND_OFF_REACH` (2^-14) holds: its origin within 2^31
+/// voxels of index 0 along each axis (the volume's sizes are below 2^31) and its
+/// length at most 2^15 voxels.
 #[inline(always)]
 pub fn rounds_off_inside(o: [f64; 3], d: [f64; 3], t_enter: f64, t_exit: f64) -> bool {
     const ORIGIN: f64 = (1u64 << 31) as f64;
     const LENGTH: f64 = (1u64 << 15) as f64;
     let length = (t_exit - t_enter) * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
     o.iter().all(|x| x.abs() <= ORIGIN) && length <= LENGTH
-}
-
-/// A macrocell's range from `margin`, the values its filter reads with one voxel of
-/// margin, and `tight`, those it reads without it (the same window for a filter
-/// without a tight one), each widened for interpolation's round-off: where
-/// `margin` is all zero, that (an exact zero stays exact, so all-zero cells are
-/// passed over); else `margin` narrowed to `tight` give or take
-/// [`ROUND_OFF_REACH`]. Both bound every sample in the cell, and so does their
-/// intersection; the tight one is often far narrower at the edge of an object (a
-/// window of 9^3 voxels instead of 11^3, on trilinear grids).
-fn cell_range(margin: [f32; 2], tight: [f32; 2]) -> [f32; 2] {
-    let [m_lo, m_hi] = widen(margin[0], margin[1]);
-    if m_hi <= 0.0 {
-        return [m_lo, m_hi];
-    }
-    let [t_lo, t_hi] = widen(tight[0], tight[1]);
-    [
-        m_lo.max(t_lo - ROUND_OFF_REACH),
-        m_hi.min(t_hi + ROUND_OFF_REACH),
-    ]
 }
 
 /// Writes the ranges of one voxel row's windows: see [`MacroGrid::build`].
@@ -111,6 +106,9 @@ pub struct MacroGrid {
     dims: [usize; 3],
     /// `[min, max]` per macrocell, x fastest.
     ranges: Vec<[f32; 2]>,
+    /// Whether the ranges bound the samples of any ray (else only of the rays of
+    /// [`rounds_off_inside`]).
+    any_ray: bool,
 }
 
 impl MacroGrid {
@@ -145,19 +143,10 @@ impl MacroGrid {
 
     /// [`MacroGrid::build`] through a dynamic `rows` (one call per voxel row), so
     /// that the parallel loop is compiled once, not once per voxel type and filter.
-    /// Each cell's range is found twice, over the support with its margin and over
-    /// the support alone (trilinear filters), and combined by [`cell_range`].
     fn build_rows(n: [usize; 3], support: Support, rows: &RowRanges) -> Self {
         let dims = Self::dims(n);
         let (before, after) = support.reach();
-        let tight = support.tight_reach();
-        // the voxel window of cell `c` along `axis`, with the margin (`margin`) or
-        // without it (the margin's window when the filter has no tight one)
-        let window = |c: usize, axis: usize, margin: bool| {
-            let (before, after) = match tight {
-                Some(reach) if !margin => reach,
-                _ => (before, after),
-            };
+        let window = |c: usize, axis: usize| {
             let lo = (c * MACROCELL).saturating_sub(before);
             let hi = ((c + 1) * MACROCELL + after).min(n[axis] - 1);
             (lo, hi)
@@ -170,62 +159,112 @@ impl MacroGrid {
             ]
         };
         const EMPTY: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
-        let d0 = dims[0];
         let slabs: Vec<Vec<[f32; 2]>> = map_indices(dims[2], &|ck| {
-            let (z0, z1) = window(ck, 2, true);
+            let (z0, z1) = window(ck, 2);
             let nz = z1 - z0 + 1;
-            // along x: per (z, y) row, per macrocell column, the windows with the
-            // margin, then those without (when they differ)
-            let kinds: &[bool] = if tight.is_some() {
-                &[true, false]
-            } else {
-                &[true]
-            };
-            let windows: Vec<(usize, usize)> = kinds
-                .iter()
-                .flat_map(|&m| (0..d0).map(move |c| window(c, 0, m)))
-                .collect();
-            let w = windows.len();
-            let mut ranges = vec![EMPTY; nz * n[1] * w];
+            // along x: per (z, y) row, per macrocell column
+            let windows: Vec<(usize, usize)> = (0..dims[0]).map(|c| window(c, 0)).collect();
+            let mut ranges = vec![EMPTY; nz * n[1] * dims[0]];
             for z in 0..nz {
                 for y in 0..n[1] {
-                    let out = &mut ranges[(z * n[1] + y) * w..][..w];
+                    let out = &mut ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
                     rows(sx * y + sxy * (z0 + z), &windows, out);
                 }
             }
-            // along y, then z, each kind over its own windows
-            let mut cells = vec![EMPTY; d0 * dims[1]];
-            let mut tights = vec![EMPTY; d0 * dims[1]];
-            let kinds = kinds.iter().zip([&mut cells, &mut tights]);
-            for (&m, out) in kinds {
-                let (zt0, zt1) = window(ck, 2, m);
-                let column = if m { 0 } else { d0 };
-                for cj in 0..dims[1] {
-                    let (y0, y1) = window(cj, 1, m);
-                    for z in zt0 - z0..=zt1 - z0 {
-                        for y in y0..=y1 {
-                            let row = &ranges[(z * n[1] + y) * w + column..][..d0];
-                            let out = &mut out[cj * d0..][..d0];
-                            for (o, &r) in out.iter_mut().zip(row) {
-                                *o = union(*o, r);
-                            }
+            // along y, then z
+            let mut cells = vec![EMPTY; dims[0] * dims[1]];
+            for cj in 0..dims[1] {
+                let (y0, y1) = window(cj, 1);
+                for z in 0..nz {
+                    for y in y0..=y1 {
+                        let row = &ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
+                        let out = &mut cells[cj * dims[0]..][..dims[0]];
+                        for (o, &r) in out.iter_mut().zip(row) {
+                            *o = union(*o, r);
                         }
                     }
                 }
             }
-            if tight.is_none() {
-                // the same windows: the same ranges
-                tights.clone_from(&cells);
-            }
             cells
-                .into_iter()
-                .zip(tights)
-                .map(|(m, t)| cell_range(m, t))
-                .collect()
         });
+        let raw: Vec<[f32; 2]> = slabs.into_iter().flatten().collect();
+        let mut ranges: Vec<[f32; 2]> = raw
+            .iter()
+            .map(|&[lo, hi]| support.cell_range(lo, hi))
+            .collect();
+        if support == Support::LinearTight {
+            // a cell that reads only zeros holds only exact zeros, whatever round-off
+            // does, if the voxels one beyond its window are zeros too (those a sample
+            // a round-off outside it reads): X-ray-like tests and a MIP on a ray that
+            // meets nothing pass over it. Those voxels lie in the neighbours' windows,
+            // so only the sides towards a neighbour that reads something are read
+            let zero = |m: usize| raw[m][1] <= 0.0;
+            let [dx, dy, dz] = dims;
+            let flat = |c: [usize; 3]| c[0] + dx * (c[1] + dy * c[2]);
+            // the voxels of cell `c` along `axis` on side `s` (-1, 0: its window, +1)
+            let side = |c: usize, axis: usize, s: i32| -> Option<(usize, usize)> {
+                let (lo, hi) = ((c * MACROCELL), ((c + 1) * MACROCELL).min(n[axis] - 1));
+                match s {
+                    -1 => lo.checked_sub(1).map(|v| (v, v)),
+                    0 => Some((lo, hi)),
+                    _ => {
+                        (hi + 1 < n[axis] && hi == (c + 1) * MACROCELL).then_some((hi + 1, hi + 1))
+                    }
+                }
+            };
+            let mut out = [[0.0f32; 2]];
+            for z in 0..dz {
+                for y in 0..dy {
+                    for x in 0..dx {
+                        let m = flat([x, y, z]);
+                        if !zero(m) {
+                            continue;
+                        }
+                        let c = [x, y, z];
+                        let mut exact = true;
+                        'sides: for s in 0..27i32 {
+                            let d = [s % 3, s / 3 % 3, s / 9].map(|k| k - 1);
+                            if d == [0, 0, 0] {
+                                continue;
+                            }
+                            let Some(nb) = (0..3)
+                                .map(|a| {
+                                    c[a].checked_add_signed(d[a] as isize)
+                                        .filter(|&v| v < dims[a])
+                                })
+                                .collect::<Option<Vec<usize>>>()
+                            else {
+                                continue;
+                            };
+                            if zero(flat([nb[0], nb[1], nb[2]])) {
+                                continue;
+                            }
+                            let (Some(wx), Some(wy), Some(wz)) =
+                                (side(x, 0, d[0]), side(y, 1, d[1]), side(z, 2, d[2]))
+                            else {
+                                continue;
+                            };
+                            for k in wz.0..=wz.1 {
+                                for j in wy.0..=wy.1 {
+                                    rows(sx * j + sxy * k, &[wx], &mut out);
+                                    if out[0][1] > 0.0 {
+                                        exact = false;
+                                        break 'sides;
+                                    }
+                                }
+                            }
+                        }
+                        if exact {
+                            ranges[m] = [0.0, 0.0];
+                        }
+                    }
+                }
+            }
+        }
         MacroGrid {
             dims,
-            ranges: slabs.into_iter().flatten().collect(),
+            ranges,
+            any_ray: support != Support::LinearTight,
         }
     }
 
@@ -247,6 +286,15 @@ impl MacroGrid {
                 );
             }
         })
+    }
+
+    /// Whether the ranges bound the samples of a ray from `o` along `d` (index
+    /// space) between `t_enter` and `t_exit`: of any ray, unless the grid is of
+    /// [`Support::LinearTight`], whose ranges hold for the rays of
+    /// [`rounds_off_inside`].
+    #[inline(always)]
+    pub fn bounds(&self, o: [f64; 3], d: [f64; 3], t_enter: f64, t_exit: f64) -> bool {
+        self.any_ray || rounds_off_inside(o, d, t_enter, t_exit)
     }
 
     /// Macrocells per axis.
@@ -442,34 +490,35 @@ mod tests {
 
     #[test]
     fn ranges_cover_the_support() {
-        // a single bright voxel at (9, 0, 0) of a 20 x 2 x 2 grid: macrocell 0 reads
-        // voxels 0..=8, plus one voxel of margin (9), of which a sample a round-off
-        // outside it reads at most that round-off; macrocell 1 reads voxels 8..=16,
-        // macrocell 2 voxels 16..=19
+        // a single bright voxel at (9, 0, 0) of a 20 x 2 x 2 grid: macrocell 0 covers
+        // cells 0..8 (voxels 0..=8) plus one voxel of margin (9); macrocell 1 covers
+        // voxels 7..=17, macrocell 2 voxels 15..=19
         let n = [20, 2, 2];
         let value = |i: usize| if i == 9 { 1.0 } else { 0.0 };
         let g = MacroGrid::from_values(n, Support::Linear, value);
         assert_eq!(g.cell_dims(), [3, 1, 1]);
+        assert_eq!(g.range(0), [0.0, 1.0]);
+        assert_eq!(g.range(1), [0.0, 1.0]);
+        assert_eq!(g.range(2), [0.0, 0.0]);
+        // without the margin: macrocell 0 reads voxels 0..=8, of which a sample a
+        // round-off outside it reads at most that round-off (so its zeros are not
+        // exact), macrocell 1 voxels 8..=16, macrocell 2 16..=19 (exact zeros: the
+        // voxel one beyond, 15, is zero too)
+        let g = MacroGrid::from_values(n, Support::LinearTight, value);
         assert_eq!(g.range(0), [0.0, ROUND_OFF_REACH]);
         assert_eq!(g.range(1), [0.0, 1.0]);
         assert_eq!(g.range(2), [0.0, 0.0]);
-        // the bright voxel at 7: in macrocell 0's support, in macrocell 1's margin
-        let value = |i: usize| if i == 7 { 1.0 } else { 0.0 };
-        let g = MacroGrid::from_values(n, Support::Linear, value);
-        assert_eq!(g.range(0), [0.0, 1.0]);
-        assert_eq!(g.range(1), [0.0, ROUND_OFF_REACH]);
-        // an all-zero support keeps its exact zero only if the margin is zero too;
-        // values inside the support are exact (widened by ulps)
+        // the same across y and z, and at a corner: a bright voxel one beyond
+        // macrocell (0, 0, 0)'s corner, at (9, 9, 9) of a 20^3 grid
+        let m = [20, 20, 20];
+        let corner = |i: usize| if i == 9 + 20 * (9 + 20 * 9) { 1.0 } else { 0.0 };
+        let g = MacroGrid::from_values(m, Support::LinearTight, corner);
+        assert_eq!(g.range(0), [0.0, ROUND_OFF_REACH]);
+        assert_eq!(g.range(2), [0.0, 0.0], "macrocell (2, 0, 0) is two away");
         let value = |i: usize| if i == 9 { 1.0 } else { 0.5 };
-        let g = MacroGrid::from_values(n, Support::Linear, value);
-        let (margin, tight) = (widen(0.5, 1.0), widen(0.5, 0.5));
-        assert_eq!(g.range(0), [margin[0], tight[1] + ROUND_OFF_REACH]);
-        let g = MacroGrid::from_values(n, Support::Cubic, value);
-        assert_eq!(
-            g.range(0),
-            widen(0.5, 1.0),
-            "the B-splines keep their margin"
-        );
+        let g = MacroGrid::from_values(n, Support::LinearTight, value);
+        let [lo, hi] = widen(0.5, 0.5);
+        assert_eq!(g.range(0), [lo - ROUND_OFF_REACH, hi + ROUND_OFF_REACH]);
         let value = |i: usize| if i == 9 { 1.0 } else { 0.0 };
         let g = MacroGrid::from_values(n, Support::Cubic, value);
         assert!(g.range(2)[1] == 0.0, "voxels 14..=19 for the cubic support");
@@ -478,9 +527,9 @@ mod tests {
         assert!(g.range(2)[1] > 0.0);
     }
 
-    /// The samples a ray takes in a macrocell's span lie in the cell's range, also
-    /// those a round-off beyond its face (where the range of its support alone would
-    /// not hold them).
+    /// The samples a ray takes in a macrocell's span lie in the cell's range
+    /// without the margin, also those a round-off beyond its face (where the range
+    /// of its support alone, not widened, would not hold them).
     #[test]
     fn samples_a_round_off_beyond_a_face_stay_in_the_range() {
         use crate::sample::{Field, GradientMethod, Interpolation, Normalize, Sampler};
@@ -509,7 +558,7 @@ mod tests {
                 None,
                 glam::DMat3::IDENTITY,
             );
-            let g = MacroGrid::from_values(n, Support::Linear, |i| v[i]);
+            let g = MacroGrid::from_values(n, Support::LinearTight, |i| v[i]);
             assert!(g.range(cell)[1] < 1e-3, "the plane is outside the support");
             // rays crossing x = 8 either way: every sample of a span in its range
             let mut checked = 0;
