@@ -125,13 +125,12 @@ fn trilinear_sample_u8(b: Bencher) {
         });
 }
 
-fn integrate(b: Bencher, integrand: impl Integrand, skip: bool) {
+/// `support`: the grid kind the renderer gives the mode (`RenderPass::new`).
+fn integrate(b: Bencher, integrand: impl Integrand, support: Support, skip: bool) {
     let s = Setup::new();
     let f = s.field();
     let rays = s.rays(64);
-    let grid = MacroGrid::build([N; 3], Support::Linear, |r, w, o| {
-        f.grid.row_ranges(r, w, o)
-    });
+    let grid = MacroGrid::build([N; 3], support, |r, w, o| f.grid.row_ranges(r, w, o));
     let nominal: usize = rays
         .iter()
         .map(|r| March::new(r.t_enter, r.t_exit, 0.5).len())
@@ -150,7 +149,7 @@ fn integrate(b: Bencher, integrand: impl Integrand, skip: bool) {
 /// MIP of 64 x 64 rays at a 0.5-voxel step (items: nominal samples).
 #[divan::bench(args = [false, true])]
 fn mip_rays(b: Bencher, skip: bool) {
-    integrate(b, Mip, skip);
+    integrate(b, Mip, Support::LinearTight, skip);
 }
 
 /// X-ray of 64 x 64 rays at a 0.5-voxel step (items: nominal samples).
@@ -162,6 +161,7 @@ fn xray_rays(b: Bencher, skip: bool) {
             output: XrayOutput::Integral,
             mu: 1.0,
         },
+        Support::Linear,
         skip,
     );
 }
