@@ -23,7 +23,6 @@ use std::ops::Range;
 use crate::error::Error;
 use crate::output::Eye;
 use crate::render::pass::GridSource;
-use crate::render::skip::MacroGrid;
 use crate::render::{ImageKind, IndexFrame, RenderPass};
 use crate::scene::{Format, Layout, LightKindSpec, MipOutput, Mode, OrbitPath, Scene, Units};
 use crate::shade::{Light, LightKind};
@@ -268,7 +267,12 @@ impl Plan {
         let table_bytes: u64 = passes.iter().map(|p| p.table_bytes(header.sizes)).sum();
         let precomputed_bytes = voxels
             .saturating_mul(12 * gradient_methods.len() as u64 + if cubic { 4 } else { 0 })
-            .saturating_add(grids.len() as u64 * MacroGrid::bytes(header.sizes))
+            .saturating_add(
+                grids
+                    .iter()
+                    .map(|g| g.grid_bytes(header.sizes))
+                    .sum::<u64>(),
+            )
             .saturating_add(table_bytes)
             .saturating_add(lut_bytes);
         // The prefilter works in double precision on a copy of the volume and gathers
@@ -365,9 +369,12 @@ impl Plan {
                 transient_bytes,
             ));
         }
-        let small = (grids.len() as u64 * MacroGrid::bytes(header.sizes))
-            .saturating_add(table_bytes)
-            .saturating_add(lut_bytes);
+        let small = (grids
+            .iter()
+            .map(|g| g.grid_bytes(header.sizes))
+            .sum::<u64>())
+        .saturating_add(table_bytes)
+        .saturating_add(lut_bytes);
         if small > 0 {
             memory.push((
                 "macrocell grids, transfer-function and lookup tables".into(),

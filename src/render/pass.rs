@@ -47,6 +47,16 @@ pub enum GridSource {
     Coefficients,
 }
 
+impl GridSource {
+    /// Bytes its grid takes over `sizes` voxels.
+    pub fn grid_bytes(self, sizes: [usize; 3]) -> u64 {
+        match self {
+            GridSource::Voxels(support) => MacroGrid::bytes(sizes, support),
+            GridSource::Coefficients => MacroGrid::bytes(sizes, Support::Cubic),
+        }
+    }
+}
+
 /// What a pass needs computed over the whole volume before its first ray (shared
 /// between the passes that need the same thing).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -244,6 +254,18 @@ impl RenderPass {
             Interpolation::Nearest | Interpolation::Trilinear if exact_zeros => {
                 GridSource::Voxels(Support::Linear)
             }
+            // the modes whose rays go through `drive` pass over octants too
+            Interpolation::Nearest | Interpolation::Trilinear
+                if matches!(
+                    mode,
+                    ModeSpec::Composite { .. }
+                        | ModeSpec::Surface(_)
+                        | ModeSpec::Depth(_)
+                        | ModeSpec::Lmip(_)
+                ) =>
+            {
+                GridSource::Voxels(Support::LinearOctants)
+            }
             Interpolation::Nearest | Interpolation::Trilinear => {
                 GridSource::Voxels(Support::LinearTight)
             }
@@ -355,11 +377,9 @@ impl RenderPass {
                 } else {
                     0
                 };
-                let cells = if self.needs.grid.is_some() {
-                    MacroGrid::bytes(sizes) / 8
-                } else {
-                    0
-                };
+                // a byte per macrocell (whether it is transparent), and one more
+                // with the octants (which of them are): an eighth of the grid
+                let cells = self.needs.grid.map_or(0, |g| g.grid_bytes(sizes) / 8);
                 tables + pre + cells
             }
             _ => 0,
@@ -446,6 +466,7 @@ impl RenderPass {
                 _ => "cells that cannot reach the threshold",
             };
             let of = match source {
+                GridSource::Voxels(Support::LinearOctants) => "voxels, and of each cell's octants",
                 GridSource::Voxels(_) => "voxels",
                 GridSource::Coefficients => "cubic coefficients",
             };
@@ -455,7 +476,7 @@ impl RenderPass {
                 d[1],
                 d[2],
                 super::skip::MACROCELL,
-                human_bytes(MacroGrid::bytes(sizes))
+                human_bytes(source.grid_bytes(sizes))
             ));
         }
         needs
@@ -723,7 +744,7 @@ impl<'v> Resources<'v> {
                 .iter()
                 .map(|(_, g)| std::mem::size_of_val(g.as_slice()))
                 .sum::<usize>()
-            + self.grids.iter().map(|(_, g)| g.len() * 8).sum::<usize>()) as u64
+            + self.grids.iter().map(|(_, g)| g.byte_size()).sum::<usize>()) as u64
     }
 }
 

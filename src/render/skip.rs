@@ -38,6 +38,11 @@ pub enum Support {
     /// [`Support::cell_range`]). Often far narrower at the edge of an object (a
     /// window of 9^3 voxels instead of 11^3).
     LinearTight,
+    /// [`Support::LinearTight`], with the ranges of each macrocell's eight octants
+    /// (4^3 voxel cells each, their own 5^3 voxels, widened the same way), for the
+    /// modes that sample a ray in order and pass over the octants of a cell they
+    /// cannot pass over whole ([`Walk::pieces`]).
+    LinearOctants,
     /// The cubic B-splines: one voxel before and two after, and the margin.
     Cubic,
 }
@@ -47,21 +52,21 @@ impl Support {
     fn reach(self) -> (usize, usize) {
         match self {
             Support::Linear => (1, 1),
-            Support::LinearTight => (0, 0),
+            Support::LinearTight | Support::LinearOctants => (0, 0),
             Support::Cubic => (2, 3),
         }
     }
 
     /// A macrocell's range from the min and max of the values the filter reads
     /// over [`Support::reach`]: widened by a few ulps for interpolation's
-    /// round-off, and for [`Support::LinearTight`] by `ROUND_OFF_REACH` more (kept in
+    /// round-off, and for [`Support::LinearTight`] and [`Support::LinearOctants`] by `ROUND_OFF_REACH` more (kept in
     /// [0, 1]), which bounds what a sample a round-off outside the cell reads from
     /// the voxels beyond it: a trilinear sample's weight on a voxel it is a
     /// round-off away from is that round-off (nearest reads no such voxel).
     fn cell_range(self, lo: f32, hi: f32) -> [f32; 2] {
         let [lo, hi] = widen(lo, hi);
         match self {
-            Support::LinearTight => [
+            Support::LinearTight | Support::LinearOctants => [
                 (lo - ROUND_OFF_REACH).max(0.0),
                 (hi + ROUND_OFF_REACH).min(1.0),
             ],
@@ -100,12 +105,23 @@ fn rounds_off_inside(o: [f64; 3], d: [f64; 3], t_enter: f64, t_exit: f64) -> boo
 /// Writes the ranges of one voxel row's windows: see [`MacroGrid::build`].
 type RowRanges<'a> = dyn Fn(usize, &[(usize, usize)], &mut [[f32; 2]]) + Sync + 'a;
 
+/// One slab of macrocells' raw ranges, and their octants' codes (empty for grids
+/// without octants).
+type SlabRanges = (Vec<[f32; 2]>, Vec<[u8; 8]>);
+
 /// The value range of the field over every macrocell.
 #[derive(Clone, Debug)]
 pub struct MacroGrid {
     dims: [usize; 3],
     /// `[min, max]` per macrocell, x fastest.
     ranges: Vec<[f32; 2]>,
+    /// Per macrocell of a grid of [`Support::LinearOctants`] (empty for the others):
+    /// the ranges of its eight octants (bit `a` of the octant's index set for the
+    /// upper half along axis `a`), each a byte of two 4-bit levels of the cell's
+    /// range ([`encode_part`]).
+    parts: Vec<[u8; 8]>,
+    /// Voxels per axis.
+    n: [usize; 3],
     /// Whether the ranges bound the samples of any ray (else only of the rays of
     /// [`rounds_off_inside`]).
     any_ray: bool,
@@ -117,12 +133,23 @@ impl MacroGrid {
         n.map(|n| n.saturating_sub(1).div_ceil(MACROCELL).max(1))
     }
 
-    /// Bytes a grid for `n` voxels takes.
-    pub fn bytes(n: [usize; 3]) -> u64 {
+    /// Bytes a grid for `n` voxels and `support` takes: 8 per macrocell, 16 with the
+    /// octants' ranges of [`Support::LinearOctants`].
+    pub fn bytes(n: [usize; 3], support: Support) -> u64 {
+        let per_cell = if support == Support::LinearOctants {
+            16
+        } else {
+            8
+        };
         // saturating: a hostile header's sizes must not overflow (the plan rejects them)
         Self::dims(n)
             .iter()
-            .fold(8u64, |a, &d| a.saturating_mul(d as u64))
+            .fold(per_cell, |a, &d| a.saturating_mul(d as u64))
+    }
+
+    /// Bytes this grid holds.
+    pub fn byte_size(&self) -> usize {
+        std::mem::size_of_val(self.ranges.as_slice()) + std::mem::size_of_val(self.parts.as_slice())
     }
 
     /// The grid over `n` voxels for a filter of `support`, where `rows(row, windows,
@@ -159,40 +186,103 @@ impl MacroGrid {
             ]
         };
         const EMPTY: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
-        let slabs: Vec<Vec<[f32; 2]>> = map_indices(dims[2], &|ck| {
+        let tight = support == Support::LinearOctants;
+        // the two halves of a cell's window along `axis` (the windows of its
+        // octants), sharing the middle voxel
+        let halves = |c: usize, axis: usize| {
+            let (lo, hi) = window(c, axis);
+            let mid = (c * MACROCELL + MACROCELL / 2).min(hi);
+            [(lo, mid), (mid, hi)]
+        };
+        // per slab of macrocells: their raw ranges, and their octants' codes
+        // (grids without the margin)
+        let slabs: Vec<SlabRanges> = map_indices(dims[2], &|ck| {
             let (z0, z1) = window(ck, 2);
             let nz = z1 - z0 + 1;
-            // along x: per (z, y) row, per macrocell column
-            let windows: Vec<(usize, usize)> = (0..dims[0]).map(|c| window(c, 0)).collect();
-            let mut ranges = vec![EMPTY; nz * n[1] * dims[0]];
+            // along x: per (z, y) row, per macrocell column (per half of one, for
+            // the octants)
+            let windows: Vec<(usize, usize)> = if tight {
+                (0..dims[0]).flat_map(|c| halves(c, 0)).collect()
+            } else {
+                (0..dims[0]).map(|c| window(c, 0)).collect()
+            };
+            let w = windows.len();
+            let mut ranges = vec![EMPTY; nz * n[1] * w];
             for z in 0..nz {
                 for y in 0..n[1] {
-                    let out = &mut ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
+                    let out = &mut ranges[(z * n[1] + y) * w..][..w];
                     rows(sx * y + sxy * (z0 + z), &windows, out);
                 }
             }
-            // along y, then z
-            let mut cells = vec![EMPTY; dims[0] * dims[1]];
+            if !tight {
+                // along y, then z
+                let mut cells = vec![EMPTY; dims[0] * dims[1]];
+                for cj in 0..dims[1] {
+                    let (y0, y1) = window(cj, 1);
+                    for z in 0..nz {
+                        for y in y0..=y1 {
+                            let row = &ranges[(z * n[1] + y) * w..][..w];
+                            let out = &mut cells[cj * dims[0]..][..dims[0]];
+                            for (o, &r) in out.iter_mut().zip(row) {
+                                *o = union(*o, r);
+                            }
+                        }
+                    }
+                }
+                return (cells, Vec::new());
+            }
+            // the octants along y and z (a row on a middle plane counts in both
+            // halves), then each cell as the union of its octants
+            let zh = halves(ck, 2);
+            let mut octants = vec![EMPTY; dims[0] * dims[1] * 8];
             for cj in 0..dims[1] {
-                let (y0, y1) = window(cj, 1);
+                let yh = halves(cj, 1);
                 for z in 0..nz {
-                    for y in y0..=y1 {
-                        let row = &ranges[(z * n[1] + y) * dims[0]..][..dims[0]];
-                        let out = &mut cells[cj * dims[0]..][..dims[0]];
-                        for (o, &r) in out.iter_mut().zip(row) {
-                            *o = union(*o, r);
+                    for y in yh[0].0..=yh[1].1 {
+                        let row = &ranges[(z * n[1] + y) * w..][..w];
+                        for (oz, &(za, zb)) in zh.iter().enumerate() {
+                            for (oy, &(ya, yb)) in yh.iter().enumerate() {
+                                if !(za..=zb).contains(&(z0 + z)) || !(ya..=yb).contains(&y) {
+                                    continue;
+                                }
+                                let cells = &mut octants[cj * dims[0] * 8..][..dims[0] * 8];
+                                for (cell, r) in cells.chunks_exact_mut(8).zip(row.chunks_exact(2))
+                                {
+                                    for ox in 0..2 {
+                                        let o = &mut cell[ox + 2 * oy + 4 * oz];
+                                        *o = union(*o, r[ox]);
+                                    }
+                                }
+                            }
                         }
                     }
                 }
             }
-            cells
+            let cells: Vec<[f32; 2]> = octants
+                .chunks_exact(8)
+                .map(|o| o.iter().fold(EMPTY, |a, &b| union(a, b)))
+                .collect();
+            let codes = octants
+                .chunks_exact(8)
+                .zip(&cells)
+                .map(|(o, &[lo, hi])| {
+                    let cell = support.cell_range(lo, hi);
+                    std::array::from_fn(|k| encode_part(support.cell_range(o[k][0], o[k][1]), cell))
+                })
+                .collect();
+            (cells, codes)
         });
-        let raw: Vec<[f32; 2]> = slabs.into_iter().flatten().collect();
+        let mut raw: Vec<[f32; 2]> = Vec::with_capacity(dims.iter().product());
+        let mut parts: Vec<[u8; 8]> = Vec::new();
+        for (cells, codes) in slabs {
+            raw.extend(cells);
+            parts.extend(codes);
+        }
         let mut ranges: Vec<[f32; 2]> = raw
             .iter()
             .map(|&[lo, hi]| support.cell_range(lo, hi))
             .collect();
-        if support == Support::LinearTight {
+        if support.reach() == (0, 0) {
             // a cell that reads only zeros holds only exact zeros, whatever round-off
             // does, if the voxels one beyond its window are zeros too (those a sample
             // a round-off outside it reads): X-ray-like tests and a MIP on a ray that
@@ -261,7 +351,9 @@ impl MacroGrid {
         MacroGrid {
             dims,
             ranges,
-            any_ray: support != Support::LinearTight,
+            parts,
+            n,
+            any_ray: support.reach() != (0, 0),
         }
     }
 
@@ -287,7 +379,7 @@ impl MacroGrid {
 
     /// Whether the ranges bound the samples of a ray from `o` along `d` (index
     /// space) between `t_enter` and `t_exit`: of any ray, unless the grid is of
-    /// [`Support::LinearTight`], whose ranges hold for the rays of
+    /// [`Support::LinearTight`] or [`Support::LinearOctants`], whose ranges hold for the rays of
     /// [`rounds_off_inside`].
     #[inline(always)]
     pub fn bounds(&self, o: [f64; 3], d: [f64; 3], t_enter: f64, t_exit: f64) -> bool {
@@ -337,6 +429,129 @@ fn widen(lo: f32, hi: f32) -> [f32; 2] {
     [(lo - slack).max(0.0), (hi + slack).min(1.0)]
 }
 
+/// Level `q` (0 to 15) of the range `cell`: its ends for 0 and 15, the fraction
+/// `q / 15` of the way between them otherwise (non-decreasing in `q`).
+#[inline(always)]
+fn level(q: u8, [lo, hi]: [f32; 2]) -> f32 {
+    match q {
+        0 => lo,
+        15 => hi,
+        _ => lo + (hi - lo) * (f32::from(q) * (1.0 / 15.0)),
+    }
+}
+
+/// An octant's range `part` as two 4-bit levels of its cell's range `cell` (low
+/// nibble: the lower end, high nibble: the upper end), rounded outwards: the
+/// decoded range ([`decode_part`]) holds `part`'s part inside `cell` (an octant's
+/// values lie in its cell's; clamping to `cell` keeps that when the cell's range was
+/// made an exact zero).
+fn encode_part(part: [f32; 2], cell: [f32; 2]) -> u8 {
+    let hi = (0..16u8).find(|&q| level(q, cell) >= part[1]).unwrap_or(15);
+    let lo = (0..16u8)
+        .rev()
+        .find(|&q| level(q, cell) <= part[0])
+        .unwrap_or(0);
+    lo | hi << 4
+}
+
+/// The range an octant's code stands for (see [`encode_part`]).
+#[inline(always)]
+fn decode_part(code: u8, cell: [f32; 2]) -> [f32; 2] {
+    [level(code & 15, cell), level(code >> 4, cell)]
+}
+
+/// The part of a [`Span`] inside one octant of its macrocell, with the octant's
+/// range: what a ray passes over inside a macrocell it cannot pass over whole.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Piece {
+    /// Where the part starts (the span's start, or where the ray crosses one of the
+    /// cell's middle planes).
+    pub t0: f64,
+    /// Where it ends.
+    pub t1: f64,
+    /// The octant: bit `a` set for the upper half along axis `a`.
+    pub octant: usize,
+}
+
+impl MacroGrid {
+    /// Whether the grid holds its octants' ranges (grids of
+    /// [`Support::LinearOctants`]).
+    #[inline(always)]
+    pub fn has_parts(&self) -> bool {
+        !self.parts.is_empty()
+    }
+
+    /// The range of octant `octant` of macrocell `cell` (grids with octants).
+    #[inline(always)]
+    pub fn part_range(&self, cell: usize, octant: usize) -> [f32; 2] {
+        decode_part(self.parts[cell][octant], self.ranges[cell])
+    }
+}
+
+impl Walk<'_> {
+    /// The parts of `span` (of this walk, or one from the same ray, with
+    /// `span.t0..t1` possibly cut shorter) in the octants of its macrocell, in
+    /// order, into `out`; their number, 1 to 4. Only for grids with octants
+    /// ([`MacroGrid::has_parts`]).
+    ///
+    /// The ray is cut where it crosses the cell's middle planes (computed from the
+    /// plane, as the walk's crossings are), and each part's octant is the one its
+    /// middle lies in (for a cell at the grid's edge, the middle plane is clamped to
+    /// the last voxel, and a point beyond it counts in the upper half, whose window
+    /// holds that voxel). A sample of a part lies within round-off of its octant, as
+    /// one of a span does of its cell, and the octant's range is widened as the
+    /// cell's is, so it bounds the sample.
+    #[inline]
+    pub fn pieces(&self, span: &Span, out: &mut [Piece; 4]) -> usize {
+        let grid = self.grid;
+        let (o, inv) = (self.o, self.inv);
+        let (t0, t1) = (span.t0, span.t1);
+        let mut mid = [0.0f64; 3];
+        let mut cuts = [0.0f64; 3];
+        let mut k = 0;
+        for a in 0..3 {
+            let c = span.at[a].clamp(0, grid.dims[a] as i64 - 1) as usize;
+            let hi = ((c + 1) * MACROCELL).min(grid.n[a] - 1);
+            mid[a] = (c * MACROCELL + MACROCELL / 2).min(hi) as f64;
+            if inv[a] != 0.0 {
+                let t = (mid[a] - o[a]) * inv[a];
+                if t > t0 && t < t1 {
+                    cuts[k] = t;
+                    k += 1;
+                }
+            }
+        }
+        // in order (at most three)
+        if k >= 2 && cuts[1] < cuts[0] {
+            cuts.swap(0, 1);
+        }
+        if k == 3 && cuts[2] < cuts[1] {
+            cuts.swap(1, 2);
+            if cuts[1] < cuts[0] {
+                cuts.swap(0, 1);
+            }
+        }
+        let mut start = t0;
+        for (j, piece) in out.iter_mut().enumerate().take(k + 1) {
+            let end = if j < k { cuts[j] } else { t1 };
+            let t = 0.5 * (start + end);
+            let mut octant = 0;
+            for a in 0..3 {
+                if o[a] + self.d[a] * t >= mid[a] {
+                    octant |= 1 << a;
+                }
+            }
+            *piece = Piece {
+                t0: start,
+                t1: end,
+                octant,
+            };
+            start = end;
+        }
+        k + 1
+    }
+}
+
 /// One step of a [`Walk`]: the ray's parameter interval inside one macrocell.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Span {
@@ -346,6 +561,9 @@ pub struct Span {
     pub t1: f64,
     /// The macrocell's flat index.
     pub cell: usize,
+    /// The macrocell's position in the grid, per axis (outside the grid for the
+    /// cells that count as the nearest one inside it).
+    pub at: [i64; 3],
     /// True for the last span of the ray.
     pub last: bool,
 }
@@ -358,6 +576,7 @@ pub struct Span {
 pub struct Walk<'a> {
     grid: &'a MacroGrid,
     o: [f64; 3],
+    d: [f64; 3],
     /// `1 / d` per axis (0 where the ray is parallel to the axis' planes).
     inv: [f64; 3],
     cell: [i64; 3],
@@ -401,6 +620,7 @@ impl<'a> Walk<'a> {
         Walk {
             grid,
             o,
+            d,
             inv,
             cell,
             step,
@@ -447,6 +667,7 @@ impl Walk<'_> {
                 t0,
                 t1: self.t_exit,
                 cell: self.flat,
+                at: self.cell,
                 last: true,
             });
         }
@@ -455,6 +676,7 @@ impl Walk<'_> {
             t0,
             t1,
             cell: self.flat,
+            at: self.cell,
             last: false,
         };
         self.t = t1;
@@ -484,6 +706,32 @@ impl Walk<'_> {
 mod tests {
     use super::*;
     use glam::DVec3;
+
+    /// A fixed pseudo-random sequence in [0, 1) (xorshift64) from `seed`.
+    fn xorshift(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// The trilinear reconstruction of the values `v` of `n` voxels (in [0, 1]).
+    fn trilinear(v: &[f32], n: [usize; 3]) -> crate::sample::Sampler<'_, f32> {
+        use crate::sample::{GradientMethod, Interpolation, Normalize, Sampler};
+        Sampler::new(
+            v,
+            n,
+            Normalize::new(0.0, 1.0),
+            Interpolation::Trilinear,
+            None,
+            GradientMethod::Central,
+            None,
+            glam::DMat3::IDENTITY,
+        )
+    }
 
     #[test]
     fn ranges_cover_the_support() {
@@ -532,15 +780,8 @@ mod tests {
     /// with no widening).
     #[test]
     fn samples_a_round_off_beyond_a_face_stay_in_the_range() {
-        use crate::sample::{Field, GradientMethod, Interpolation, Normalize, Sampler};
-        // a fixed pseudo-random sequence in [0, 1) (xorshift64)
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut random = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        use crate::sample::Field;
+        let mut random = xorshift(0x9e37_79b9_7f4a_7c15);
         let n = [33, 17, 17];
         // ones on the plane x = 9, just beyond macrocell 0's support (voxels 0..=8),
         // or on x = 7, just before macrocell 1's (8..=16); zeros elsewhere
@@ -548,16 +789,7 @@ mod tests {
             let v: Vec<f32> = (0..n[0] * n[1] * n[2])
                 .map(|i| if i % n[0] == plane { 1.0 } else { 0.0 })
                 .collect();
-            let field = Sampler::new(
-                &v[..],
-                n,
-                Normalize::new(0.0, 1.0),
-                Interpolation::Trilinear,
-                None,
-                GradientMethod::Central,
-                None,
-                glam::DMat3::IDENTITY,
-            );
+            let field = trilinear(&v, n);
             let g = MacroGrid::from_values(n, Support::LinearTight, |i| v[i]);
             assert!(g.range(cell)[1] < 1e-3, "the plane is outside the support");
             // rays crossing x = 8 either way: every sample of a span in its range
@@ -655,8 +887,146 @@ mod tests {
 
     #[test]
     fn grid_is_small() {
-        // 1/64 of a uint8 volume with 8^3 voxels per macrocell
-        assert_eq!(MacroGrid::bytes([257, 257, 257]), 32 * 32 * 32 * 8);
-        assert_eq!(MacroGrid::bytes([1, 1, 1]), 8);
+        // 1/64 of a uint8 volume with 8^3 voxels per macrocell, 1/32 with the
+        // octants' ranges
+        let n = [257, 257, 257];
+        assert_eq!(MacroGrid::bytes(n, Support::Linear), 32 * 32 * 32 * 8);
+        assert_eq!(MacroGrid::bytes(n, Support::LinearTight), 32 * 32 * 32 * 8);
+        assert_eq!(
+            MacroGrid::bytes(n, Support::LinearOctants),
+            32 * 32 * 32 * 16
+        );
+        assert_eq!(MacroGrid::bytes([1, 1, 1], Support::Linear), 8);
+        let g = MacroGrid::from_values([33, 17, 9], Support::LinearOctants, |_| 0.5);
+        assert_eq!(
+            g.byte_size() as u64,
+            MacroGrid::bytes([33, 17, 9], Support::LinearOctants)
+        );
+        let g = MacroGrid::from_values([33, 17, 9], Support::LinearTight, |_| 0.5);
+        assert_eq!(
+            g.byte_size() as u64,
+            MacroGrid::bytes([33, 17, 9], Support::LinearTight)
+        );
+    }
+
+    #[test]
+    fn octant_codes_round_outwards() {
+        let cells = [
+            [0.0, 1.0],
+            [0.1, 0.7],
+            [0.3, 0.3],
+            [0.0, 0.0],
+            [0.25, 0.2500001],
+        ];
+        let mut next = xorshift(0x2545_f491_4f6c_dd1d);
+        let mut random = move || next() as f32;
+        for cell in cells {
+            for _ in 0..2000 {
+                let (a, b) = (random(), random());
+                let part = [
+                    cell[0] + (cell[1] - cell[0]) * a.min(b),
+                    cell[0] + (cell[1] - cell[0]) * a.max(b),
+                ];
+                let part = [part[0].max(cell[0]), part[1].min(cell[1])];
+                let [lo, hi] = decode_part(encode_part(part, cell), cell);
+                assert!(
+                    lo <= part[0] && part[1] <= hi,
+                    "{part:?} in {cell:?}: {lo} {hi}"
+                );
+            }
+            // a part equal to the cell, and the ends
+            assert_eq!(decode_part(encode_part(cell, cell), cell), cell);
+        }
+        // a narrow part far below the top of its cell decodes to well below it
+        let [_, hi] = decode_part(encode_part([0.0, 0.05], [0.0, 1.0]), [0.0, 1.0]);
+        assert!(hi <= 1.0 / 15.0, "{hi}");
+    }
+
+    /// Every sample of a ray's part in an octant lies in the octant's range: random
+    /// rays through a field with bright voxels in some octants only, at the ends of
+    /// the parts and in between; and the parts tile each span in order.
+    #[test]
+    fn samples_of_a_part_stay_in_its_octant_range() {
+        use crate::sample::Field;
+        let mut random = xorshift(0x9e37_79b9_7f4a_7c15);
+        // 21 x 19 x 18 voxels: the last cells along each axis are partial (voxels
+        // 16..=20, 16..=18, 16..=17), so their middle planes are clamped
+        let n = [21, 19, 18];
+        let v: Vec<f32> = (0..n[0] * n[1] * n[2])
+            .map(|i| {
+                let (x, y, z) = (i % n[0], i / n[0] % n[1], i / (n[0] * n[1]));
+                // bright in the upper-x, lower-y halves of cells, and a ramp elsewhere
+                if x % 8 >= 5 && y % 8 <= 2 {
+                    1.0
+                } else {
+                    0.02 * ((x + 2 * y + 3 * z) % 7) as f32
+                }
+            })
+            .collect();
+        let field = trilinear(&v, n);
+        let g = MacroGrid::from_values(n, Support::LinearOctants, |i| v[i]);
+        assert!(g.has_parts());
+        let mut checked = 0;
+        let mut narrower = 0;
+        let mut pieces = [Piece::default(); 4];
+        for k in 0..3000 {
+            let d = DVec3::new(random() - 0.5, random() - 0.5, random() - 0.5).normalize();
+            let d = if k % 10 == 0 { DVec3::X } else { d };
+            let o = DVec3::new(10.0, 9.0, 8.5) - d * 40.0
+                + DVec3::new(random() - 0.5, random() - 0.5, random() - 0.5) * 12.0;
+            let ray = IndexRay { o, d };
+            // the parameters where the ray is inside the box of voxel centres
+            let (mut t0, mut t1) = (0.0f64, 80.0f64);
+            for a in 0..3 {
+                let (oa, da) = (o[a], d[a]);
+                if da == 0.0 {
+                    if oa < 0.0 || oa > (n[a] - 1) as f64 {
+                        t1 = -1.0;
+                    }
+                    continue;
+                }
+                let (x, y) = ((0.0 - oa) / da, ((n[a] - 1) as f64 - oa) / da);
+                t0 = t0.max(x.min(y));
+                t1 = t1.min(x.max(y));
+            }
+            if t1 <= t0 {
+                continue;
+            }
+            let mut walk = g.walk(&ray, t0, t1);
+            while let Some(span) = walk.next() {
+                let count = walk.pieces(&span, &mut pieces);
+                assert!((1..=4).contains(&count));
+                assert_eq!(pieces[0].t0, span.t0);
+                assert_eq!(pieces[count - 1].t1, span.t1);
+                for p in &pieces[..count] {
+                    let [lo, hi] = g.part_range(span.cell, p.octant);
+                    let cell = g.range(span.cell);
+                    assert!(cell[0] <= lo && hi <= cell[1]);
+                    narrower += usize::from(hi < cell[1]);
+                    let before_end = |ulps: u64| f64::from_bits(p.t1.to_bits() - ulps);
+                    let mid = 0.5 * (p.t0 + p.t1);
+                    for t in [p.t0, mid, before_end(1), before_end(3)] {
+                        if t < p.t0 || (t >= p.t1 && !span.last) {
+                            continue;
+                        }
+                        let f = field.value(ray.at(t));
+                        assert!(
+                            lo <= f && f <= hi,
+                            "{f:e} outside {lo:e}..{hi:e} at {} (octant {})",
+                            ray.at(t),
+                            p.octant
+                        );
+                        checked += 1;
+                    }
+                }
+                for w in pieces[..count].windows(2) {
+                    assert_eq!(w[0].t1, w[1].t0);
+                    assert!(w[0].t0 <= w[0].t1);
+                }
+            }
+        }
+        assert!(checked > 20_000, "{checked}");
+        // the octants do narrow the ranges
+        assert!(narrower > 1000, "{narrower}");
     }
 }

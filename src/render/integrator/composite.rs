@@ -148,6 +148,13 @@ pub struct Composite {
     /// Per macrocell of the pass's grid: true where the transfer function is
     /// transparent over the cell's values.
     transparent: Vec<bool>,
+    /// Per macrocell of a grid with octants: the octants over whose values the
+    /// transfer function is transparent, as the bits of a mask.
+    transparent_parts: Vec<u8>,
+    /// How many entries along the value axis before each are not transparent (a
+    /// prefix count, one longer than the axis; empty before
+    /// [`Composite::classify`]).
+    opaque_before: Vec<u32>,
     /// Entries along the value axis, less one: the tables look a value `v` up at
     /// `table_position(v, value_last)`.
     value_last: f32,
@@ -186,35 +193,66 @@ impl Composite {
             voxel_length,
             preintegrated,
             transparent: Vec::new(),
+            transparent_parts: Vec::new(),
+            opaque_before: Vec::new(),
         }
     }
 
     /// Marks the macrocells of `grid` over whose values the transfer function is
     /// transparent (found in O(1) per cell from a prefix count of the table's
-    /// entries that are not).
+    /// entries that are not), and keeps the count for the parts of cells
+    /// ([`Composite::transparent_over`]).
     pub fn classify(&mut self, grid: &MacroGrid) {
         let opaque = self.tables.opaque_entries();
-        let last = opaque.len() - 1;
         let mut prefix = Vec::with_capacity(opaque.len() + 1);
         prefix.push(0u32);
         for (i, &o) in opaque.iter().enumerate() {
             prefix.push(prefix[i] + u32::from(o));
         }
+        self.opaque_before = prefix;
+        self.transparent = (0..grid.len())
+            .map(|m| self.transparent_over(grid.range(m)))
+            .collect();
+        self.transparent_parts = if grid.has_parts() {
+            (0..grid.len())
+                .map(|m| {
+                    (0..8).fold(0u8, |mask, o| {
+                        mask | u8::from(self.transparent_over(grid.part_range(m, o))) << o
+                    })
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+    }
+
+    /// Whether the transfer function is transparent over octant `octant` of
+    /// macrocell `cell` (false for a grid without octants).
+    #[inline(always)]
+    fn transparent_part(&self, cell: usize, octant: usize) -> bool {
+        self.transparent_parts
+            .get(cell)
+            .is_some_and(|m| m >> octant & 1 != 0)
+    }
+
+    /// Whether the transfer function is transparent over the values `[lo, hi]`
+    /// (after [`Composite::classify`]; false before).
+    #[inline]
+    fn transparent_over(&self, [lo, hi]: [f32; 2]) -> bool {
+        if let Some(p) = &self.preintegrated {
+            return p.transparent(f64::from(lo), f64::from(hi));
+        }
+        let prefix = &self.opaque_before;
+        if prefix.len() < 2 {
+            return false;
+        }
+        let last = prefix.len() - 2;
         // a lookup of v reads the entries around v * last: one entry more on each
         // side covers the f32 rounding of that product
         let entry = |v: f32| table_position(v, last as f32) as usize;
-        self.transparent = (0..grid.len())
-            .map(|m| {
-                let [lo, hi] = grid.range(m);
-                let a = entry(lo).saturating_sub(1);
-                let b = (entry(hi) + 2).min(last);
-                let table_transparent = prefix[b + 1] == prefix[a];
-                match &self.preintegrated {
-                    Some(p) => p.transparent(f64::from(lo), f64::from(hi)),
-                    None => table_transparent,
-                }
-            })
-            .collect();
+        let a = entry(lo).saturating_sub(1);
+        let b = (entry(hi) + 2).min(last);
+        prefix[b + 1] == prefix[a]
     }
 
     /// Memory held by the tables, in bytes.
@@ -222,6 +260,8 @@ impl Composite {
         self.tables.byte_size()
             + self.preintegrated.as_ref().map_or(0, |p| p.byte_size())
             + self.transparent.len()
+            + self.transparent_parts.len()
+            + 4 * self.opaque_before.len()
     }
 
     /// Whether the transfer function is transparent at value `v` (whatever the
@@ -320,6 +360,16 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     #[inline(always)]
     fn skippable(&self, cell: usize, _range: [f32; 2]) -> bool {
         self.pass.transparent.get(cell).copied().unwrap_or(false)
+    }
+
+    #[inline(always)]
+    fn skippable_part(&self, cell: usize, octant: usize, _range: [f32; 2]) -> bool {
+        self.pass.transparent_part(cell, octant)
+    }
+
+    #[inline(always)]
+    fn skippable_parts(&self, _grid: &MacroGrid, cell: usize) -> u8 {
+        self.pass.transparent_parts.get(cell).copied().unwrap_or(0)
     }
 
     #[inline(always)]
@@ -422,6 +472,16 @@ impl<F: Field> Consumer for Segments<'_, F> {
     #[inline(always)]
     fn skippable(&self, cell: usize, _range: [f32; 2]) -> bool {
         self.pass.transparent.get(cell).copied().unwrap_or(false)
+    }
+
+    #[inline(always)]
+    fn skippable_part(&self, cell: usize, octant: usize, _range: [f32; 2]) -> bool {
+        self.pass.transparent_part(cell, octant)
+    }
+
+    #[inline(always)]
+    fn skippable_parts(&self, _grid: &MacroGrid, cell: usize) -> u8 {
+        self.pass.transparent_parts.get(cell).copied().unwrap_or(0)
     }
 
     /// The segments between samples inside transparent cells are transparent; the

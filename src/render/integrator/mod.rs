@@ -28,7 +28,7 @@ pub use xray::Xray;
 use super::clip::Cut;
 use super::march::{Lattice, March};
 use super::ray::IndexRay;
-use super::skip::MacroGrid;
+use super::skip::{MacroGrid, Piece};
 use crate::sample::{CellCache, Field};
 
 /// Samples a ray took, and the samples the plain march would have taken.
@@ -110,6 +110,23 @@ pub trait Consumer {
     /// consecutive cells as one run); when the answer is true it asks again after
     /// them, so only the second answer decides, and a false one only costs samples.
     fn skippable(&self, cell: usize, range: [f32; 2]) -> bool;
+    /// Whether every sample inside octant `octant` of macrocell `cell`, whose values
+    /// lie in `range`, can be passed over now (asked as [`Consumer::skippable`] is,
+    /// for a cell that cannot be passed over whole, on grids with octants).
+    fn skippable_part(&self, cell: usize, octant: usize, range: [f32; 2]) -> bool;
+
+    /// The octants of macrocell `cell` of `grid` that [`Consumer::skippable_part`]
+    /// says can be passed over now, as the bits of a mask.
+    #[inline(always)]
+    fn skippable_parts(&self, grid: &MacroGrid, cell: usize) -> u8 {
+        let mut mask = 0;
+        for octant in 0..8 {
+            if self.skippable_part(cell, octant, grid.part_range(cell, octant)) {
+                mask |= 1 << octant;
+            }
+        }
+        mask
+    }
     /// The samples `i..j` are passed over (the consumer accounts for the gap);
     /// `Break` ends the ray.
     fn skip(&mut self, i: usize, j: usize) -> ControlFlow<()>;
@@ -120,7 +137,9 @@ pub trait Consumer {
 /// The one sampling loop: hands `consumer` the samples of `lattice` along `ray`
 /// (values of `field`), in order, passing over the samples of the macrocells it can
 /// skip when `grid` is given (consecutive cells it cannot skip are sampled as one
-/// run). Returns the number of samples taken.
+/// run). In a macrocell it cannot skip whole, on a grid with octants, it is asked
+/// again for each part of the span in one octant ([`MacroGrid::pieces`]). Returns
+/// the number of samples taken.
 #[inline(always)]
 pub fn drive<L: Lattice, F: Field, C: Consumer>(
     lattice: &L,
@@ -129,84 +148,150 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
     grid: Option<&MacroGrid>,
     consumer: &mut C,
 ) -> u64 {
-    let n = lattice.len();
-    let index = &ray.index;
-    let mut batch = Batch::default();
-    // takes samples `from..to`; the count taken, and whether the consumer stopped
-    let mut take = |from: usize, to: usize, consumer: &mut C| -> (u64, bool) {
-        match batch.sample(field, index, lattice, from, to, consumer) {
-            Some(i) => ((i + 1 - from) as u64, true),
-            None => ((to - from) as u64, false),
-        }
+    let mut runs = Runs {
+        lattice,
+        field,
+        index: &ray.index,
+        batch: Batch::default(),
+        i: 0,
+        gap: false,
+        open: None,
+        taken: 0,
     };
     let Some(grid) = grid else {
-        return take(0, n, consumer).0;
+        let n = lattice.len();
+        let _ = runs.take(0, n, consumer);
+        return runs.taken;
     };
-    let mut taken = 0u64;
-    // samples before `i` are handled; those from `i` to the start of the current
-    // span lie in cells that were passed over, while `gap` is true; consecutive
-    // cells that are not passed over are sampled as one run (full batches, and the
-    // sample index found once per run rather than per cell): `open` is where the
-    // run from `i` ends so far
-    let mut i = 0;
-    let mut gap = false;
-    let mut open: Option<f64> = None;
-    for span in grid.walk(index, ray.t_enter, ray.t_exit) {
-        let range = grid.range(span.cell);
-        let mut skippable = consumer.skippable(span.cell, range);
-        if skippable {
-            if let Some(t1) = open.take() {
-                let j = lattice.first_at_or_after(t1).max(i);
-                if j > i {
-                    let (count, stopped) = take(i, j, consumer);
-                    taken += count;
-                    if stopped {
-                        return taken;
-                    }
-                    i = j;
+    let mut pieces = [Piece::default(); 4];
+    let mut walk = grid.walk(&ray.index, ray.t_enter, ray.t_exit);
+    while let Some(span) = walk.next() {
+        let (cell, range) = (span.cell, grid.range(span.cell));
+        // a cell that cannot be passed over whole, but some of whose octants can
+        if grid.has_parts()
+            && !consumer.skippable(cell, range)
+            && consumer.skippable_parts(grid, cell) != 0
+        {
+            let k = walk.pieces(&span, &mut pieces);
+            for (p, piece) in pieces[..k].iter().enumerate() {
+                let last = span.last && p + 1 == k;
+                let part = grid.part_range(cell, piece.octant);
+                let ask = |c: &C| c.skippable_part(cell, piece.octant, part);
+                if runs
+                    .visit(piece.t0, piece.t1, last, consumer, ask)
+                    .is_break()
+                {
+                    return runs.taken;
+                }
+            }
+            continue;
+        }
+        let ask = |c: &C| c.skippable(span.cell, range);
+        if runs
+            .visit(span.t0, span.t1, span.last, consumer, ask)
+            .is_break()
+        {
+            return runs.taken;
+        }
+    }
+    // a walk that ended early (non-finite parameters) leaves its samples here
+    let n = lattice.len();
+    if runs.i < n {
+        let _ = runs.take(runs.i, n, consumer);
+    }
+    runs.taken
+}
+
+/// [`drive`]'s state along one ray.
+struct Runs<'a, L, F> {
+    lattice: &'a L,
+    field: &'a F,
+    index: &'a IndexRay,
+    batch: Batch,
+    /// Samples before `i` are handled; those from `i` to the start of the current
+    /// part lie in parts that were passed over while `gap` is true. Consecutive
+    /// parts that are not passed over are sampled as one run (full batches, and the
+    /// sample index found once per run rather than per part): `open` is where the
+    /// run from `i` ends so far.
+    i: usize,
+    gap: bool,
+    open: Option<f64>,
+    taken: u64,
+}
+
+impl<L: Lattice, F: Field> Runs<'_, L, F> {
+    /// Takes samples `from..to`; `Break` when the consumer stopped.
+    #[inline(always)]
+    fn take<C: Consumer>(&mut self, from: usize, to: usize, consumer: &mut C) -> ControlFlow<()> {
+        let (field, index, lattice) = (self.field, self.index, self.lattice);
+        match self.batch.sample(field, index, lattice, from, to, consumer) {
+            Some(i) => {
+                self.taken += (i + 1 - from) as u64;
+                ControlFlow::Break(())
+            }
+            None => {
+                self.taken += (to - from) as u64;
+                ControlFlow::Continue(())
+            }
+        }
+    }
+
+    /// The part `t0..t1` of the ray (`last`: the ray's last), which `consumer`
+    /// may pass over when `skippable` says so; `Break` once the ray is done.
+    #[inline(always)]
+    fn visit<C: Consumer>(
+        &mut self,
+        t0: f64,
+        t1: f64,
+        last: bool,
+        consumer: &mut C,
+        skippable: impl Fn(&C) -> bool,
+    ) -> ControlFlow<()> {
+        let n = self.lattice.len();
+        let mut skip = skippable(consumer);
+        if skip {
+            if let Some(end) = self.open.take() {
+                let j = self.lattice.first_at_or_after(end).max(self.i);
+                if j > self.i {
+                    self.take(self.i, j, consumer)?;
+                    self.i = j;
                 }
                 // asked again, now that every earlier sample is handed over: they
                 // may change the answer (a local MIP that started climbing samples
-                // on). A cell that was not skippable before them is sampled, which
+                // on). A part that was not skippable before them is sampled, which
                 // is always right (a running maximum that has grown since would
                 // only have passed over it)
-                skippable = consumer.skippable(span.cell, range);
+                skip = skippable(consumer);
             }
         }
-        if skippable {
-            gap = true;
-            if !span.last {
-                continue;
+        if skip {
+            self.gap = true;
+            if !last {
+                return ControlFlow::Continue(());
             }
-            if i < n {
+            if self.i < n {
                 // the last samples are passed over: the ray ends either way
-                let _ = consumer.skip(i, n);
+                let _ = consumer.skip(self.i, n);
             }
-            return taken;
+            return ControlFlow::Break(());
         }
-        if gap {
-            let j = lattice.first_at_or_after(span.t0).max(i);
-            gap = false;
-            if j > i {
-                if consumer.skip(i, j).is_break() {
-                    return taken;
-                }
-                i = j;
+        if self.gap {
+            let j = self.lattice.first_at_or_after(t0).max(self.i);
+            self.gap = false;
+            if j > self.i {
+                consumer.skip(self.i, j)?;
+                self.i = j;
             }
         }
-        if span.last {
-            if i < n {
-                taken += take(i, n, consumer).0;
+        if last {
+            if self.i < n {
+                let _ = self.take(self.i, n, consumer);
             }
-            return taken;
+            return ControlFlow::Break(());
         }
-        open = Some(span.t1);
+        self.open = Some(t1);
+        ControlFlow::Continue(())
     }
-    // a walk that ended early (non-finite parameters) leaves its samples here
-    if i < n {
-        taken += take(i, n, consumer).0;
-    }
-    taken
 }
 
 /// Samples along a ray taken [`BATCH`] at a time ([`Field::values_along`]), with the
@@ -375,6 +460,9 @@ mod tests {
     impl Consumer for Watch {
         fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
             !self.seen && range[1] <= 0.0
+        }
+        fn skippable_part(&self, _cell: usize, _octant: usize, range: [f32; 2]) -> bool {
+            self.skippable(0, range)
         }
         fn skip(&mut self, i: usize, j: usize) -> ControlFlow<()> {
             self.skipped.push((i, j));
