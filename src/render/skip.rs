@@ -489,10 +489,9 @@ impl MacroGrid {
 }
 
 impl Walk<'_> {
-    /// The parts of `span` (of this walk, or one from the same ray, with
-    /// `span.t0..t1` possibly cut shorter) in the octants of its macrocell, in
-    /// order, into `out`; their number, 1 to 4. Only for grids with octants
-    /// ([`MacroGrid::has_parts`]).
+    /// The parts of `span`, the span this walk of `ray` returned last, in the
+    /// octants of its macrocell, in order, into `out`; their number, 1 to 4. Only
+    /// for grids with octants ([`MacroGrid::has_parts`]).
     ///
     /// The ray is cut where it crosses the cell's middle planes (computed from the
     /// plane, as the walk's crossings are), and each part's octant is the one its
@@ -502,15 +501,20 @@ impl Walk<'_> {
     /// one of a span does of its cell, and the octant's range is widened as the
     /// cell's is, so it bounds the sample.
     #[inline]
-    pub fn pieces(&self, span: &Span, out: &mut [Piece; 4]) -> usize {
+    pub fn pieces(&self, ray: &IndexRay, span: &Span, out: &mut [Piece; 4]) -> usize {
         let grid = self.grid;
-        let (o, inv) = (self.o, self.inv);
+        let (o, d, inv) = (self.o, ray.d.to_array(), self.inv);
         let (t0, t1) = (span.t0, span.t1);
+        // the span's cell: the walk's, one step back along the axis it stepped
+        let mut at = self.cell;
+        if let Some(&step) = self.step.get(usize::from(self.stepped)) {
+            at[usize::from(self.stepped)] -= step;
+        }
         let mut mid = [0.0f64; 3];
         let mut cuts = [0.0f64; 3];
         let mut k = 0;
         for a in 0..3 {
-            let c = span.at[a].clamp(0, grid.dims[a] as i64 - 1) as usize;
+            let c = at[a].clamp(0, grid.dims[a] as i64 - 1) as usize;
             let hi = ((c + 1) * MACROCELL).min(grid.n[a] - 1);
             mid[a] = (c * MACROCELL + MACROCELL / 2).min(hi) as f64;
             if inv[a] != 0.0 {
@@ -537,7 +541,7 @@ impl Walk<'_> {
             let t = 0.5 * (start + end);
             let mut octant = 0;
             for a in 0..3 {
-                if o[a] + self.d[a] * t >= mid[a] {
+                if o[a] + d[a] * t >= mid[a] {
                     octant |= 1 << a;
                 }
             }
@@ -561,9 +565,6 @@ pub struct Span {
     pub t1: f64,
     /// The macrocell's flat index.
     pub cell: usize,
-    /// The macrocell's position in the grid, per axis (outside the grid for the
-    /// cells that count as the nearest one inside it).
-    pub at: [i64; 3],
     /// True for the last span of the ray.
     pub last: bool,
 }
@@ -576,7 +577,6 @@ pub struct Span {
 pub struct Walk<'a> {
     grid: &'a MacroGrid,
     o: [f64; 3],
-    d: [f64; 3],
     /// `1 / d` per axis (0 where the ray is parallel to the axis' planes).
     inv: [f64; 3],
     cell: [i64; 3],
@@ -587,6 +587,10 @@ pub struct Walk<'a> {
     t: f64,
     t_exit: f64,
     done: bool,
+    /// The axis along which the walk stepped after the span it returned last (3
+    /// when it did not: that span was the last), so that [`Walk::pieces`] finds
+    /// that span's cell without the walk handing its position over with every span.
+    stepped: u8,
 }
 
 impl<'a> Walk<'a> {
@@ -620,7 +624,6 @@ impl<'a> Walk<'a> {
         Walk {
             grid,
             o,
-            d,
             inv,
             cell,
             step,
@@ -629,6 +632,7 @@ impl<'a> Walk<'a> {
             t: t_enter,
             t_exit,
             done: !ok,
+            stepped: 3,
         }
     }
 }
@@ -663,11 +667,11 @@ impl Walk<'_> {
         // a NaN crossing (not `< t_exit`) ends the walk too
         if next.partial_cmp(&self.t_exit) != Some(std::cmp::Ordering::Less) {
             self.done = true;
+            self.stepped = 3;
             return Some(Span {
                 t0,
                 t1: self.t_exit,
                 cell: self.flat,
-                at: self.cell,
                 last: true,
             });
         }
@@ -676,9 +680,9 @@ impl Walk<'_> {
             t0,
             t1,
             cell: self.flat,
-            at: self.cell,
             last: false,
         };
+        self.stepped = A as u8;
         self.t = t1;
         let step = self.step[A];
         let c = self.cell[A] + step;
@@ -994,7 +998,7 @@ mod tests {
             }
             let mut walk = g.walk(&ray, t0, t1);
             while let Some(span) = walk.next() {
-                let count = walk.pieces(&span, &mut pieces);
+                let count = walk.pieces(&ray, &span, &mut pieces);
                 assert!((1..=4).contains(&count));
                 assert_eq!(pieces[0].t0, span.t0);
                 assert_eq!(pieces[count - 1].t1, span.t1);

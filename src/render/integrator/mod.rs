@@ -172,7 +172,7 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
             && !consumer.skippable(cell, range)
             && consumer.skippable_parts(grid, cell) != 0
         {
-            let k = walk.pieces(&span, &mut pieces);
+            let k = walk.pieces(&ray.index, &span, &mut pieces);
             for (p, piece) in pieces[..k].iter().enumerate() {
                 let last = span.last && p + 1 == k;
                 let part = grid.part_range(cell, piece.octant);
