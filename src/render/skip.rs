@@ -442,16 +442,37 @@ fn level(q: u8, [lo, hi]: [f32; 2]) -> f32 {
 
 /// An octant's range `part` as two 4-bit levels of its cell's range `cell` (low
 /// nibble: the lower end, high nibble: the upper end), rounded outwards: the
-/// decoded range ([`decode_part`]) holds `part`'s part inside `cell` (an octant's
-/// values lie in its cell's; clamping to `cell` keeps that when the cell's range was
-/// made an exact zero).
+/// highest level at or below `part[0]` and the lowest at or above `part[1]`, so
+/// that the decoded range ([`decode_part`]) holds `part`, which lies in `cell` (an
+/// octant's range is part of its cell's; level 0 is `cell[0]` and level 15
+/// `cell[1]`). The levels are guessed by division and corrected against
+/// [`level`] itself.
 fn encode_part(part: [f32; 2], cell: [f32; 2]) -> u8 {
-    let hi = (0..16u8).find(|&q| level(q, cell) >= part[1]).unwrap_or(15);
-    let lo = (0..16u8)
-        .rev()
-        .find(|&q| level(q, cell) <= part[0])
-        .unwrap_or(0);
-    lo | hi << 4
+    let [lo, hi] = cell;
+    let guess = |v: f32| {
+        let x = (v - lo) / (hi - lo) * 15.0;
+        // NaN (an empty range) and values outside it clamp to the ends
+        if x > 0.0 {
+            x.min(15.0)
+        } else {
+            0.0
+        }
+    };
+    let mut top = guess(part[1]).ceil() as u8;
+    while top < 15 && !(level(top, cell) >= part[1]) {
+        top += 1;
+    }
+    while top > 0 && level(top - 1, cell) >= part[1] {
+        top -= 1;
+    }
+    let mut bottom = guess(part[0]).floor() as u8;
+    while bottom > 0 && !(level(bottom, cell) <= part[0]) {
+        bottom -= 1;
+    }
+    while bottom < 15 && level(bottom + 1, cell) <= part[0] {
+        bottom += 1;
+    }
+    bottom | top << 4
 }
 
 /// The range an octant's code stands for (see [`encode_part`]).

@@ -138,7 +138,7 @@ pub trait Consumer {
 /// (values of `field`), in order, passing over the samples of the macrocells it can
 /// skip when `grid` is given (consecutive cells it cannot skip are sampled as one
 /// run). In a macrocell it cannot skip whole, on a grid with octants, it is asked
-/// again for each part of the span in one octant ([`MacroGrid::pieces`]). Returns
+/// again for each part of the span in one octant ([`Walk::pieces`](crate::render::skip::Walk::pieces)). Returns
 /// the number of samples taken.
 #[inline(always)]
 pub fn drive<L: Lattice, F: Field, C: Consumer>(
