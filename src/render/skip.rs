@@ -459,14 +459,23 @@ fn encode_part(part: [f32; 2], cell: [f32; 2]) -> u8 {
         }
     };
     let mut top = guess(part[1]).ceil() as u8;
-    while top < 15 && !(level(top, cell) >= part[1]) {
+    // below the part's top, or incomparable (NaN): not yet a bound
+    while top < 15
+        && level(top, cell)
+            .partial_cmp(&part[1])
+            .is_none_or(|o| o.is_lt())
+    {
         top += 1;
     }
     while top > 0 && level(top - 1, cell) >= part[1] {
         top -= 1;
     }
     let mut bottom = guess(part[0]).floor() as u8;
-    while bottom > 0 && !(level(bottom, cell) <= part[0]) {
+    while bottom > 0
+        && level(bottom, cell)
+            .partial_cmp(&part[0])
+            .is_none_or(|o| o.is_gt())
+    {
         bottom -= 1;
     }
     while bottom < 15 && level(bottom + 1, cell) <= part[0] {
