@@ -39,9 +39,9 @@ pub enum Support {
     /// window of 9^3 voxels instead of 11^3).
     LinearTight,
     /// [`Support::LinearTight`], with the ranges of each macrocell's eight octants
-    /// (4^3 voxel cells each, their own 5^3 voxels, widened the same way), for the
-    /// modes that sample a ray in order and pass over the octants of a cell they
-    /// cannot pass over whole ([`Walk::pieces`]).
+    /// (4^3 voxel cells each, their own 5^3 voxels, widened the same way), for a
+    /// mode that samples a ray in order through `drive` and passes over the octants
+    /// of a cell it cannot pass over whole ([`Walk::pieces`]): the composite.
     LinearOctants,
     /// The cubic B-splines: one voxel before and two after, and the margin.
     Cubic,
