@@ -611,6 +611,11 @@ pub struct Walk<'a> {
     inv: [f64; 3],
     cell: [i64; 3],
     step: [i64; 3],
+    /// Per axis: how the flat index moves with a step (signed), the cells along
+    /// it, and 1 when the next crossing is the cell's upper plane (0 for the lower).
+    stride: [isize; 3],
+    limit: [u64; 3],
+    ahead: [i64; 3],
     /// The flat index of the cell, clamped to the grid.
     flat: usize,
     t_next: [f64; 3],
@@ -651,12 +656,16 @@ impl<'a> Walk<'a> {
         let dims = grid.dims;
         let c = |a: usize| cell[a].clamp(0, dims[a] as i64 - 1) as usize;
         let ok = t_enter.is_finite() && t_exit.is_finite() && t_exit >= t_enter;
+        let strides = [1, dims[0], dims[0] * dims[1]];
         Walk {
             grid,
             o,
             inv,
             cell,
             step,
+            stride: std::array::from_fn(|a| step[a] as isize * strides[a] as isize),
+            limit: dims.map(|d| d as u64),
+            ahead: step.map(|s| i64::from(s > 0)),
             flat: c(0) + dims[0] * (c(1) + dims[1] * c(2)),
             t_next,
             t: t_enter,
@@ -717,20 +726,13 @@ impl Walk<'_> {
         let step = self.step[A];
         let c = self.cell[A] + step;
         self.cell[A] = c;
-        let dims = self.grid.dims;
-        // stepping from outside the grid into it, or inside it, moves the flat index
-        if c >= 0 && c < dims[A] as i64 {
-            let inside_before = c - step >= 0 && c - step < dims[A] as i64;
-            if inside_before {
-                let stride = [1, dims[0], dims[0] * dims[1]][A];
-                self.flat = if step > 0 {
-                    self.flat + stride
-                } else {
-                    self.flat - stride
-                };
-            }
+        // a step inside the grid moves the flat index (as unsigned numbers, indices
+        // below 0 lie above the limit); one from or to outside it does not
+        let limit = self.limit[A];
+        if (c as u64) < limit && ((c - step) as u64) < limit {
+            self.flat = self.flat.wrapping_add_signed(self.stride[A]);
         }
-        let plane = if step > 0 { c + 1 } else { c };
+        let plane = c + self.ahead[A];
         self.t_next[A] = (plane as f64 * MACROCELL as f64 - self.o[A]) * self.inv[A];
         Some(span)
     }
