@@ -336,9 +336,7 @@ impl Batch {
         let mut i = from;
         while i < to {
             let m = (to - i).min(BATCH);
-            for (k, t) in self.ts[..m].iter_mut().enumerate() {
-                *t = lattice.t(i + k);
-            }
+            lattice.fill(i, &mut self.ts[..m]);
             field.values_along(
                 ray.o,
                 ray.d,
