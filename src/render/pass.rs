@@ -376,7 +376,10 @@ impl RenderPass {
                 // a byte per macrocell (whether it is transparent), and one more
                 // with the octants (which of them are): an eighth of the grid
                 let cells = self.needs.grid.map_or(0, |g| g.grid_bytes(sizes) / 8);
-                tables + pre + cells
+                // the prefix count of opaque entries along the value axis (at most
+                // one per entry, plus one)
+                let prefix = 4 * (entries + 1);
+                tables + pre + cells + prefix
             }
             _ => 0,
         }
