@@ -160,11 +160,6 @@ impl<F: Field> Consumer for FirstCrossing<'_, F> {
     }
 
     #[inline(always)]
-    fn skippable_part(&self, _cell: usize, _octant: usize, range: [f32; 2]) -> bool {
-        self.skippable(0, range)
-    }
-
-    #[inline(always)]
     fn skip(&mut self, _i: usize, _j: usize) -> ControlFlow<()> {
         self.prev = None;
         ControlFlow::Continue(())

@@ -112,8 +112,11 @@ pub trait Consumer {
     fn skippable(&self, cell: usize, range: [f32; 2]) -> bool;
     /// Whether every sample inside octant `octant` of macrocell `cell`, whose values
     /// lie in `range`, can be passed over now (asked as [`Consumer::skippable`] is,
-    /// for a cell that cannot be passed over whole, on grids with octants).
-    fn skippable_part(&self, cell: usize, octant: usize, range: [f32; 2]) -> bool;
+    /// for a cell that cannot be passed over whole, on grids with octants, which
+    /// only the composite's passes have). Never, unless a consumer says otherwise.
+    fn skippable_part(&self, _cell: usize, _octant: usize, _range: [f32; 2]) -> bool {
+        false
+    }
 
     /// The octants of macrocell `cell` of `grid` that [`Consumer::skippable_part`]
     /// says can be passed over now, as the bits of a mask.
@@ -458,9 +461,6 @@ mod tests {
     impl Consumer for Watch {
         fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
             !self.seen && range[1] <= 0.0
-        }
-        fn skippable_part(&self, _cell: usize, _octant: usize, range: [f32; 2]) -> bool {
-            self.skippable(0, range)
         }
         fn skip(&mut self, i: usize, j: usize) -> ControlFlow<()> {
             self.skipped.push((i, j));

@@ -124,11 +124,6 @@ impl Consumer for WeightedMax {
     }
 
     #[inline(always)]
-    fn skippable_part(&self, _cell: usize, _octant: usize, range: [f32; 2]) -> bool {
-        self.skippable(0, range)
-    }
-
-    #[inline(always)]
     fn skip(&mut self, _i: usize, _j: usize) -> ControlFlow<()> {
         ControlFlow::Continue(())
     }
@@ -221,11 +216,6 @@ impl Consumer for Extremum {
         } else {
             range[0] >= self.best
         }
-    }
-
-    #[inline(always)]
-    fn skippable_part(&self, _cell: usize, _octant: usize, range: [f32; 2]) -> bool {
-        self.skippable(0, range)
     }
 
     #[inline(always)]
@@ -449,11 +439,6 @@ impl Consumer for Climb {
     #[inline(always)]
     fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
         self.climbing.is_none() && range[1] < self.threshold
-    }
-
-    #[inline(always)]
-    fn skippable_part(&self, _cell: usize, _octant: usize, range: [f32; 2]) -> bool {
-        self.skippable(0, range)
     }
 
     #[inline(always)]

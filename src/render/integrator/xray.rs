@@ -88,11 +88,6 @@ impl Consumer for Trapezoid<'_> {
         range[1] <= 0.0
     }
 
-    #[inline(always)]
-    fn skippable_part(&self, _cell: usize, _octant: usize, range: [f32; 2]) -> bool {
-        self.skippable(0, range)
-    }
-
     #[inline]
     fn skip(&mut self, i: usize, j: usize) -> ControlFlow<()> {
         // the first skipped sample closes the trapezoid before the gap; the samples
