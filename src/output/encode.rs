@@ -2,7 +2,7 @@
 
 use crate::render::Film;
 use crate::volume::nrrd::{self, NrrdHeader};
-use crate::volume::{ScalarType, VolumeData, VolumeError};
+use crate::volume::{ScalarType, TypedVoxels, VolumeError, Voxels};
 
 /// Why an image could not be encoded.
 #[derive(Debug, thiserror::Error)]
@@ -100,7 +100,7 @@ pub fn nrrd(film: &Film, key_values: &[(String, String)]) -> Result<Vec<u8>, Vol
     };
     let mut header = header;
     header.key_values.extend(key_values.iter().cloned());
-    nrrd::encode(&header, &VolumeData::F32(film.data.clone()))
+    nrrd::encode_voxels(&header, TypedVoxels::F32(Voxels::from_slice(&film.data)))
 }
 
 #[cfg(test)]

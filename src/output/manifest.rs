@@ -275,19 +275,41 @@ pub fn is_complete(out: &Path, record: &FrameRecord, digest: &str) -> bool {
 }
 
 /// Whether `name` in `folder` is a regular file of `bytes` bytes whose SHA-256 is
-/// `sha256` (hex). The size is compared first, so a file of another size is not read.
+/// `sha256` (hex). The size is compared first, so a file of another size is not read;
+/// a file this process wrote or hashed, unchanged since, is not read again ([`known`]).
 pub(crate) fn file_matches(folder: &Folder, name: &str, bytes: u64, sha256: &str) -> bool {
-    let same_size = folder
-        .open_regular(name)
-        .and_then(|f| f.metadata())
-        .is_ok_and(|m| m.len() == bytes);
-    same_size && hash_file(folder, name).is_ok_and(|(n, h)| n == bytes && h == sha256)
+    let Ok(mut file) = folder.open_regular(name) else {
+        return false;
+    };
+    let Ok(before) = file.metadata() else {
+        return false;
+    };
+    if before.len() != bytes {
+        return false;
+    }
+    if let Some(known) = known::sha256(&before) {
+        return known == sha256;
+    }
+    let Ok((n, h)) = hash_open(&mut file) else {
+        return false;
+    };
+    if file
+        .metadata()
+        .is_ok_and(|after| known::same(&before, &after))
+    {
+        known::remember(&before, &h);
+    }
+    n == bytes && h == sha256
 }
 
 /// SHA-256 (hex) and size of the regular file `name` in `folder`.
 pub(crate) fn hash_file(folder: &Folder, name: &str) -> std::io::Result<(u64, String)> {
+    hash_open(&mut folder.open_regular(name)?)
+}
+
+/// SHA-256 (hex) and size of an open file, read from its current position.
+fn hash_open(file: &mut std::fs::File) -> std::io::Result<(u64, String)> {
     use std::io::Read as _;
-    let mut file = folder.open_regular(name)?;
     let mut h = Sha256::new();
     let mut buf = vec![0u8; 1 << 16];
     let mut total = 0u64;
@@ -303,6 +325,73 @@ pub(crate) fn hash_file(folder: &Folder, name: &str) -> std::io::Result<(u64, St
         }
     }
     Ok((total, hex(&h.finalize())))
+}
+
+/// The SHA-256 of files this process wrote, or read whole, for as long as they stay
+/// as they were then: a file is known by its device and inode, size, and
+/// modification and status-change times (the times in nanoseconds; a rename, a
+/// write or a `chmod` changes one of them). This is the trust git's index and make
+/// place in a file's metadata; it spares the end of a run reading back and hashing
+/// again every image it has just written and hashed. Unix only: elsewhere every
+/// file is read.
+mod known {
+    use std::collections::BTreeMap;
+    use std::fs::Metadata;
+    use std::sync::{Mutex, PoisonError};
+
+    /// Device, inode, size, modification time and status-change time (s, ns).
+    type Stamp = (u64, u64, u64, i64, i64, i64, i64);
+
+    static KNOWN: Mutex<BTreeMap<Stamp, String>> = Mutex::new(BTreeMap::new());
+
+    #[cfg(unix)]
+    fn stamp(m: &Metadata) -> Option<Stamp> {
+        use std::os::unix::fs::MetadataExt;
+        Some((
+            m.dev(),
+            m.ino(),
+            m.len(),
+            m.mtime(),
+            m.mtime_nsec(),
+            m.ctime(),
+            m.ctime_nsec(),
+        ))
+    }
+
+    #[cfg(not(unix))]
+    fn stamp(_: &Metadata) -> Option<Stamp> {
+        None
+    }
+
+    /// Whether two reads of a file's metadata show it unchanged.
+    pub(super) fn same(a: &Metadata, b: &Metadata) -> bool {
+        stamp(a).is_some() && stamp(a) == stamp(b)
+    }
+
+    /// Records that the file `m` describes has SHA-256 `sha256`.
+    pub(super) fn remember(m: &Metadata, sha256: &str) {
+        if let Some(s) = stamp(m) {
+            let mut known = KNOWN.lock().unwrap_or_else(PoisonError::into_inner);
+            known.insert(s, sha256.to_owned());
+        }
+    }
+
+    /// The SHA-256 recorded for the file `m` describes, if it is unchanged since.
+    pub(super) fn sha256(m: &Metadata) -> Option<String> {
+        let s = stamp(m)?;
+        let known = KNOWN.lock().unwrap_or_else(PoisonError::into_inner);
+        known.get(&s).cloned()
+    }
+}
+
+/// Writes `bytes` to `path` atomically (see [`super::write::write_atomic`]) and
+/// returns the file's record (its SHA-256 from `bytes`), remembering the hash so
+/// that the manifest at the end of the run does not read the file back.
+pub fn write_recorded(path: &Path, bytes: &[u8]) -> std::io::Result<FileRecord> {
+    let meta = super::write::write_atomic_stat(path, bytes)?;
+    let record = file_record(path, bytes);
+    known::remember(&meta, &record.sha256);
+    Ok(record)
 }
 
 /// SHA-256 (hex) of a list of strings, each length-prefixed (the identity of the
@@ -766,7 +855,7 @@ fn collect(out: &Path, head: &ManifestHead) -> Result<(Vec<FrameRecord>, Manifes
         .iter()
         .flat_map(|p| (0..scene.orbit.frames).map(move |k| (p.name.as_str(), k)))
         .collect();
-    // every file of every record is hashed: in parallel
+    // every file of every record is checked (hashed, unless `known` has it): in parallel
     let found: Vec<Result<Option<FrameRecord>, Error>> = {
         use rayon::prelude::*;
         keys.par_iter()
@@ -849,6 +938,52 @@ mod tests {
         let s = scene(base);
         let h = s.volume.source.header().unwrap();
         assert_ne!(scene_digest(&s, &h, 8, 8), scene_digest(&s, &h, 8, 9));
+    }
+
+    #[test]
+    fn a_written_file_is_known_until_it_changes() {
+        let dir = std::env::temp_dir().join(format!("volcast-known-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a_0001.png");
+        let r = write_recorded(&path, b"12345").unwrap();
+        assert_eq!(r.bytes, 5);
+        let folder = Folder::open(&dir).unwrap();
+        let meta = folder
+            .open_regular("a_0001.png")
+            .unwrap()
+            .metadata()
+            .unwrap();
+        if cfg!(unix) {
+            assert_eq!(known::sha256(&meta), Some(r.sha256.clone()), "remembered");
+        }
+        assert!(file_matches(&folder, "a_0001.png", 5, &r.sha256));
+        assert!(!file_matches(&folder, "a_0001.png", 5, &"0".repeat(64)));
+        // replaced by another file of the same size and time (a new inode): read again
+        let modified = meta.modified().unwrap();
+        std::fs::write(dir.join("other"), b"54321").unwrap();
+        let f = std::fs::File::options()
+            .write(true)
+            .open(dir.join("other"))
+            .unwrap();
+        f.set_modified(modified).unwrap();
+        std::fs::rename(dir.join("other"), &path).unwrap();
+        assert!(
+            !file_matches(&folder, "a_0001.png", 5, &r.sha256),
+            "replaced"
+        );
+        // changed in place, size and modification time kept (the status-change time moves)
+        let r = write_recorded(&path, b"12345").unwrap();
+        assert!(file_matches(&folder, "a_0001.png", 5, &r.sha256));
+        let modified = std::fs::metadata(&path).unwrap().modified().unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(30));
+        std::fs::write(&path, b"12346").unwrap();
+        let f = std::fs::File::options().write(true).open(&path).unwrap();
+        f.set_modified(modified).unwrap();
+        assert!(
+            !file_matches(&folder, "a_0001.png", 5, &r.sha256),
+            "changed"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -38,6 +38,13 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
     write_atomic_with(path, |w| w.write_all(bytes))
 }
 
+/// [`write_atomic`], returning the metadata of the file written (see
+/// [`Folder::write_atomic_stat`]).
+pub fn write_atomic_stat(path: &Path, bytes: &[u8]) -> io::Result<std::fs::Metadata> {
+    let (dir, name) = split(path)?;
+    Folder::open(dir)?.write_atomic_stat(name, |w| w.write_all(bytes))
+}
+
 /// Writes `path` atomically from a writer callback (for files too large to hold
 /// in memory, such as animations): `fill` writes into a buffered temporary file,
 /// which is synced and renamed over `path` only if `fill` succeeds.
@@ -269,16 +276,39 @@ impl Folder {
         name: &str,
         fill: impl FnOnce(&mut dyn Write) -> io::Result<()>,
     ) -> io::Result<()> {
+        self.write_atomic_stat(name, fill).map(drop)
+    }
+
+    /// [`Folder::write_atomic_with`], returning the metadata of the file it wrote,
+    /// read from the open file after the rename (so it is that file's, whatever
+    /// happens to the name meanwhile; on other systems than Unix, read by name).
+    pub fn write_atomic_stat(
+        &self,
+        name: &str,
+        fill: impl FnOnce(&mut dyn Write) -> io::Result<()>,
+    ) -> io::Result<std::fs::Metadata> {
         let (tmp, file) = self.create_temporary(name)?;
+        let mut renamed = false;
         let result = (|| {
             let mut w = BufWriter::new(file);
             fill(&mut w)?;
             let file = w.into_inner().map_err(|e| e.into_error())?;
             file.sync_all()?;
-            drop(file);
-            self.rename(&tmp, name)
+            #[cfg(unix)]
+            {
+                self.rename(&tmp, name)?;
+                renamed = true;
+                file.metadata()
+            }
+            #[cfg(not(unix))]
+            {
+                drop(file);
+                self.rename(&tmp, name)?;
+                renamed = true;
+                std::fs::metadata(self.path.join(name))
+            }
         })();
-        if result.is_err() {
+        if result.is_err() && !renamed {
             let _ = self.remove(&tmp);
         }
         result

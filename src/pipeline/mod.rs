@@ -40,7 +40,7 @@ use crate::output::display::{to_display, DisplayKind, Window};
 use crate::output::manifest::{
     self, FileRecord, FrameRecord, ManifestHead, ManifestStatus, ViewRecord,
 };
-use crate::output::{encode, frame_path, stereo, viewer, write_atomic, Eye};
+use crate::output::{encode, frame_path, stereo, viewer, Eye};
 use crate::plan::{Plan, RunOptions};
 use crate::render::{Film, ImageKind, RenderView, Resources, View};
 use crate::sample::Normalize;

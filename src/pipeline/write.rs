@@ -106,11 +106,10 @@ pub(super) fn write_frame(
                 })?
             }
         };
-        write_atomic(&path, &bytes).map_err(|source| Error::Output {
+        let record = manifest::write_recorded(&path, &bytes).map_err(|source| Error::Output {
             path: path.clone(),
             source,
         })?;
-        let record = manifest::file_record(&path, &bytes);
         files.push((path, record));
     }
     Ok(files)

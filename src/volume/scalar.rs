@@ -481,13 +481,40 @@ pub enum TypedVoxels<'a> {
     F64(Voxels<'a, f64>),
 }
 
+impl<'a> TypedVoxels<'a> {
+    /// The element type.
+    pub fn scalar_type(self) -> ScalarType {
+        fn of<T: Voxel>(_: Voxels<'_, T>) -> ScalarType {
+            T::TYPE
+        }
+        crate::with_voxels!(self, v => of(v))
+    }
+
+    /// The number of elements.
+    pub fn len(self) -> usize {
+        crate::with_voxels!(self, v => v.len())
+    }
+
+    /// Whether there are no elements.
+    pub fn is_empty(self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl<'a> From<&'a VolumeData> for TypedVoxels<'a> {
+    fn from(data: &'a VolumeData) -> TypedVoxels<'a> {
+        data.typed()
+    }
+}
+
 /// Calls `$body` with `$v` bound to the [`Voxels`] view of a [`VolumeData`] (owned or
-/// mapped), typed with its element type: `with_voxels!(&volume.data, v => f(v))` calls
-/// `f::<u16>(v: Voxels<u16>)` for 16-bit data, and so on.
+/// mapped) or of a [`TypedVoxels`], typed with its element type:
+/// `with_voxels!(&volume.data, v => f(v))` calls `f::<u16>(v: Voxels<u16>)` for 16-bit
+/// data, and so on.
 #[macro_export]
 macro_rules! with_voxels {
     ($data:expr, $v:ident => $body:expr) => {
-        match $crate::volume::VolumeData::typed($data) {
+        match $crate::volume::TypedVoxels::from($data) {
             $crate::volume::TypedVoxels::I8($v) => $body,
             $crate::volume::TypedVoxels::U8($v) => $body,
             $crate::volume::TypedVoxels::I16($v) => $body,

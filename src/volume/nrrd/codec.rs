@@ -3,9 +3,10 @@
 //! arrives, hex and ASCII adapters that turn text into those bytes, and the inverse
 //! conversions for writing.
 
+use std::borrow::Cow;
 use std::io::{self, BufRead, Read};
 
-use crate::volume::{ScalarType, VolumeData, Voxel, Voxels};
+use crate::volume::{ScalarType, TypedVoxels, VolumeData, Voxel, Voxels};
 use crate::with_voxels;
 
 /// Bytes read per step (a multiple of every element size).
@@ -396,18 +397,19 @@ impl_native_bytes!("{}": i8, u8, i16, u16, i32, u32, i64, u64);
 // Debug: exponent notation for very large and small magnitudes (Display never uses it).
 impl_native_bytes!("{:?}": f32, f64);
 
-/// The data as stored bytes in the given byte order.
-pub(super) fn element_bytes(data: &VolumeData, little_endian: bool) -> Vec<u8> {
-    fn conv<T: Voxel + NativeBytes>(v: Voxels<'_, T>, le: bool) -> Vec<u8> {
+/// The data as stored bytes in the given byte order: the data's own bytes when
+/// that is the native order (no copy), else a converted copy.
+pub(super) fn element_bytes(data: TypedVoxels<'_>, little_endian: bool) -> Cow<'_, [u8]> {
+    fn conv<T: Voxel + NativeBytes>(v: Voxels<'_, T>, le: bool) -> Cow<'_, [u8]> {
         if le == cfg!(target_endian = "little") {
-            return v.as_bytes().to_vec();
+            return Cow::Borrowed(v.as_bytes());
         }
         let mut out = Vec::with_capacity(v.as_bytes().len());
         for x in v.iter() {
             let (b, n) = x.bytes8(le);
             out.extend_from_slice(&b[..n]);
         }
-        out
+        Cow::Owned(out)
     }
     with_voxels!(data, v => conv(v, little_endian))
 }
@@ -415,7 +417,7 @@ pub(super) fn element_bytes(data: &VolumeData, little_endian: bool) -> Vec<u8> {
 /// The data as ASCII text, `per_line` values per line (Rust's shortest round-trip
 /// formatting, `1.0e300`-style for extreme floats; NaN and infinities as `NaN`, `inf`,
 /// `-inf`).
-pub(super) fn ascii_text(data: &VolumeData, per_line: usize) -> Vec<u8> {
+pub(super) fn ascii_text(data: TypedVoxels<'_>, per_line: usize) -> Vec<u8> {
     fn conv<T: Voxel + NativeBytes>(v: Voxels<'_, T>, per_line: usize) -> Vec<u8> {
         let per_line = per_line.max(1);
         let mut out = String::new();
@@ -552,12 +554,12 @@ mod tests {
     #[test]
     fn writers() {
         let d = VolumeData::U16(vec![0x0102, 0xa0b0]);
-        assert_eq!(element_bytes(&d, true), vec![2, 1, 0xb0, 0xa0]);
-        assert_eq!(element_bytes(&d, false), vec![1, 2, 0xa0, 0xb0]);
+        assert_eq!(*element_bytes(d.typed(), true), [2, 1, 0xb0, 0xa0]);
+        assert_eq!(*element_bytes(d.typed(), false), [1, 2, 0xa0, 0xb0]);
         assert_eq!(hex_text(&[0, 0xff, 0x10]), b"00ff10\n");
         let d = VolumeData::F32(vec![0.1, f32::NAN, -f32::INFINITY, 3.0]);
-        assert_eq!(ascii_text(&d, 2), b"0.1 NaN\n-inf 3.0\n");
+        assert_eq!(ascii_text(d.typed(), 2), b"0.1 NaN\n-inf 3.0\n");
         let d = VolumeData::F64(vec![f64::MAX, 5e-324]);
-        assert_eq!(ascii_text(&d, 2), b"1.7976931348623157e308 5e-324\n");
+        assert_eq!(ascii_text(d.typed(), 2), b"1.7976931348623157e308 5e-324\n");
     }
 }

@@ -22,7 +22,7 @@
 //!                                  native-typed buffer, honouring `endian`, growing
 //!                                  only as bytes arrive
 //! volume_header (view.rs)          N-D header → 3D sizes + Geometry for the renderer
-//! encode / write_detached (write.rs)
+//! encode / encode_voxels / write_detached (write.rs)
 //! ```
 //!
 //! Headers are untrusted: every count is checked before it sizes anything, and every
@@ -41,7 +41,7 @@ use std::path::Path;
 use super::{Limits, ScalarType, Storage, VolumeData, VolumeError, VolumeHeader};
 
 pub(crate) use codec::{ElementSink, ReadError};
-pub use write::{encode, write_detached};
+pub use write::{encode, encode_voxels, write_detached};
 
 /// How the data bytes are stored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

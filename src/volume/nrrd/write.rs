@@ -8,18 +8,23 @@ use super::codec::{ascii_text, element_bytes, hex_text};
 use super::data::NumberFormat;
 use super::fields::{is_center, is_kind};
 use super::{Encoding, Endian, NrrdHeader};
-use crate::volume::{VolumeData, VolumeError};
+use crate::volume::{TypedVoxels, VolumeData, VolumeError};
 
 /// Encodes a complete attached-header NRRD file in memory: magic, fields, `key:=value`
 /// pairs (escaped), a blank line, then the data in `header.encoding` and
 /// `header.endian`. `data_file`, `line_skip` and `byte_skip` are not written: the data
 /// follows the header directly.
 pub fn encode(header: &NrrdHeader, data: &VolumeData) -> Result<Vec<u8>, VolumeError> {
+    encode_voxels(header, data.typed())
+}
+
+/// [`encode`] from a borrowed view of the values (an image's samples, say): the file's
+/// bytes are the one buffer this allocates.
+pub fn encode_voxels(header: &NrrdHeader, data: TypedVoxels<'_>) -> Result<Vec<u8>, VolumeError> {
     check_for_writing(header, data)?;
     let mut out = header_text(header, None).into_bytes();
     out.push(b'\n');
-    out.extend(encode_data(header, data)?);
-    Ok(out)
+    encode_data(header, data, out)
 }
 
 /// Writes a detached header to `nhdr_path` naming `data_file_name` (relative to the
@@ -30,6 +35,7 @@ pub fn write_detached(
     header: &NrrdHeader,
     data: &VolumeData,
 ) -> Result<(), VolumeError> {
+    let data = data.typed();
     check_for_writing(header, data)?;
     check_data_file_name(data_file_name)?;
     let text = header_text(header, Some(data_file_name));
@@ -37,7 +43,7 @@ pub fn write_detached(
         .parent()
         .unwrap_or(Path::new(""))
         .join(data_file_name);
-    let bytes = encode_data(header, data)?;
+    let bytes = encode_data(header, data, Vec::new())?;
     write_file(&data_path, &bytes)?;
     write_file(nhdr_path, text.as_bytes())
 }
@@ -159,7 +165,7 @@ fn check_space(h: &NrrdHeader) -> Result<(), VolumeError> {
     check_len(&h.space_units, sd, "space units", "space dimension")
 }
 
-fn check_for_writing(h: &NrrdHeader, data: &VolumeData) -> Result<(), VolumeError> {
+fn check_for_writing(h: &NrrdHeader, data: TypedVoxels<'_>) -> Result<(), VolumeError> {
     let dim = h.dimension();
     if !(1..=16).contains(&dim) || h.sizes.contains(&0) {
         return Err(invalid(format!(
@@ -379,27 +385,37 @@ fn header_text(h: &NrrdHeader, data_file: Option<&str>) -> String {
 
 // ---------------------------------------------------------------- data
 
-fn encode_data(h: &NrrdHeader, data: &VolumeData) -> Result<Vec<u8>, VolumeError> {
+/// `out` with the data appended in the header's encoding.
+fn encode_data(
+    h: &NrrdHeader,
+    data: TypedVoxels<'_>,
+    mut out: Vec<u8>,
+) -> Result<Vec<u8>, VolumeError> {
     let le = h.endian == Endian::Little;
     let compress_err =
         |e: std::io::Error| invalid(format!("{} compression failed: {e}", h.encoding.name()));
-    Ok(match h.encoding {
-        Encoding::Raw => element_bytes(data, le),
-        Encoding::Hex => hex_text(&element_bytes(data, le)),
-        Encoding::Ascii => ascii_text(data, h.sizes[0]),
+    match h.encoding {
+        Encoding::Raw => {
+            let bytes = element_bytes(data, le);
+            out.reserve_exact(bytes.len());
+            out.extend_from_slice(&bytes);
+        }
+        Encoding::Hex => out.extend(hex_text(&element_bytes(data, le))),
+        Encoding::Ascii => out.extend(ascii_text(data, h.sizes[0])),
         Encoding::Gzip => {
-            let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+            let mut e = flate2::write::GzEncoder::new(out, flate2::Compression::default());
             e.write_all(&element_bytes(data, le))
                 .map_err(compress_err)?;
-            e.finish().map_err(compress_err)?
+            out = e.finish().map_err(compress_err)?;
         }
         Encoding::Bzip2 => {
-            let mut e = bzip2::write::BzEncoder::new(Vec::new(), bzip2::Compression::default());
+            let mut e = bzip2::write::BzEncoder::new(out, bzip2::Compression::default());
             e.write_all(&element_bytes(data, le))
                 .map_err(compress_err)?;
-            e.finish().map_err(compress_err)?
+            out = e.finish().map_err(compress_err)?;
         }
-    })
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
