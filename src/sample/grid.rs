@@ -533,3 +533,58 @@ pub(super) fn cell(x: f64, n: usize) -> (usize, usize, f32) {
     let i0 = (x as usize).min(n - 2);
     (i0, i0 + 1, (x - i0 as f64) as f32)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each window's range from `row_ranges` is that of its voxels normalised one
+    /// by one: NaN (as 0), infinities, signed zeros, increasing and decreasing
+    /// windows, float and integer voxels.
+    #[test]
+    fn row_ranges_are_the_normalised_extremes() {
+        fn check<T: Voxel>(values: &[T], norm: Normalize) {
+            let n = [values.len(), 1, 1];
+            let lut = normalisation_table::<T>(norm);
+            let grid = Grid::new(Voxels::from_slice(values), n, norm, &lut);
+            let windows: Vec<(usize, usize)> = (0..n[0])
+                .flat_map(|a| (a..n[0].min(a + 6)).map(move |b| (a, b)))
+                .collect();
+            let mut out = vec![[0.0f32; 2]; windows.len()];
+            grid.row_ranges(0, &windows, &mut out);
+            for (&(a, b), got) in windows.iter().zip(&out) {
+                let want = (a..=b)
+                    .map(|i| grid.at(i))
+                    .fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], v| {
+                        [lo.min(v), hi.max(v)]
+                    });
+                assert_eq!(
+                    got.map(f32::to_bits),
+                    want.map(f32::to_bits),
+                    "window {a}..={b} of {:?}",
+                    values.iter().map(|v| v.to_f64()).collect::<Vec<_>>()
+                );
+            }
+        }
+        let floats = [
+            0.25f32,
+            f32::NAN,
+            -0.0,
+            0.0,
+            f32::INFINITY,
+            0.7,
+            f32::NAN,
+            f32::NAN,
+            -3.0,
+            f32::NEG_INFINITY,
+            0.5,
+            1.5,
+        ];
+        for norm in [Normalize::new(0.0, 1.0), Normalize::new(1.0, -0.5)] {
+            check(&floats, norm);
+            check(&floats.map(f64::from), norm);
+            check(&[-7i32, 3, 0, 12, -1, 5, 9, 2], Normalize::new(-4.0, 8.0));
+            check(&[7u64, 3, 0, 12, 1, 5, 9, 2], norm);
+        }
+    }
+}
