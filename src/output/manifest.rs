@@ -368,10 +368,18 @@ mod known {
         stamp(a).is_some() && stamp(a) == stamp(b)
     }
 
+    /// Files remembered at most: a cache, emptied when full (a run of more frames
+    /// than this reads back the images of its earlier ones), so a long-lived process
+    /// does not grow with every file it writes.
+    const CAPACITY: usize = 1 << 16;
+
     /// Records that the file `m` describes has SHA-256 `sha256`.
     pub(super) fn remember(m: &Metadata, sha256: &str) {
         if let Some(s) = stamp(m) {
             let mut known = KNOWN.lock().unwrap_or_else(PoisonError::into_inner);
+            if known.len() >= CAPACITY {
+                known.clear();
+            }
             known.insert(s, sha256.to_owned());
         }
     }
