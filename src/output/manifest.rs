@@ -398,7 +398,9 @@ mod known {
 pub fn write_recorded(path: &Path, bytes: &[u8]) -> std::io::Result<FileRecord> {
     let meta = super::write::write_atomic_stat(path, bytes)?;
     let record = file_record(path, bytes);
-    known::remember(&meta, &record.sha256);
+    if let Some(meta) = meta {
+        known::remember(&meta, &record.sha256);
+    }
     Ok(record)
 }
 

@@ -40,7 +40,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
 
 /// [`write_atomic`], returning the metadata of the file written (see
 /// [`Folder::write_atomic_stat`]).
-pub fn write_atomic_stat(path: &Path, bytes: &[u8]) -> io::Result<std::fs::Metadata> {
+pub fn write_atomic_stat(path: &Path, bytes: &[u8]) -> io::Result<Option<std::fs::Metadata>> {
     let (dir, name) = split(path)?;
     Folder::open(dir)?.write_atomic_stat(name, |w| w.write_all(bytes))
 }
@@ -281,34 +281,29 @@ impl Folder {
 
     /// [`Folder::write_atomic_with`], returning the metadata of the file it wrote,
     /// read from the open file after the rename (so it is that file's, whatever
-    /// happens to the name meanwhile; on other systems than Unix, read by name).
+    /// happens to the name meanwhile; on other systems than Unix, read by name),
+    /// or `None` when it cannot be read (the file is written all the same).
     pub fn write_atomic_stat(
         &self,
         name: &str,
         fill: impl FnOnce(&mut dyn Write) -> io::Result<()>,
-    ) -> io::Result<std::fs::Metadata> {
+    ) -> io::Result<Option<std::fs::Metadata>> {
         let (tmp, file) = self.create_temporary(name)?;
-        let mut renamed = false;
         let result = (|| {
             let mut w = BufWriter::new(file);
             fill(&mut w)?;
             let file = w.into_inner().map_err(|e| e.into_error())?;
             file.sync_all()?;
-            #[cfg(unix)]
-            {
-                self.rename(&tmp, name)?;
-                renamed = true;
-                file.metadata()
-            }
             #[cfg(not(unix))]
-            {
-                drop(file);
-                self.rename(&tmp, name)?;
-                renamed = true;
-                std::fs::metadata(self.path.join(name))
-            }
+            drop(file);
+            self.rename(&tmp, name)?;
+            #[cfg(unix)]
+            let metadata = file.metadata();
+            #[cfg(not(unix))]
+            let metadata = std::fs::metadata(self.path.join(name));
+            Ok(metadata.ok())
         })();
-        if result.is_err() && !renamed {
+        if result.is_err() {
             let _ = self.remove(&tmp);
         }
         result
