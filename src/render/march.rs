@@ -130,18 +130,31 @@ impl March {
         if i > self.full_steps {
             self.t1
         } else {
-            // `i + 0.0` is exact, so the plain march is unchanged by the shift; `i`
-            // converts through i64 (one instruction; the same value below 2^63); the
-            // comparisons (not `f64::max`/`min`, which also handle NaN) keep the
-            // position inside the segment in two instructions
-            let t = self.t0 + (i as i64 as f64 + self.shift) * self.dt;
-            let t = if t > self.t0 { t } else { self.t0 };
-            if t < self.t1 {
-                t
-            } else {
-                self.t1
-            }
+            self.t_before_end(i)
         }
+    }
+
+    /// [`March::t`] for `i <= full_steps` (every position but the exit point).
+    #[inline(always)]
+    fn t_before_end(&self, i: usize) -> f64 {
+        // `i + 0.0` is exact, so the plain march is unchanged by the shift; `i`
+        // converts through i64 (one instruction; the same value below 2^63); the
+        // comparisons (not `f64::max`/`min`, which also handle NaN) keep the
+        // position inside the segment in two instructions
+        let t = self.t0 + (i as i64 as f64 + self.shift) * self.dt;
+        let t = if t > self.t0 { t } else { self.t0 };
+        if t < self.t1 {
+            t
+        } else {
+            self.t1
+        }
+    }
+
+    /// The middle of the whole step from sample `i` to sample `i + 1`
+    /// ([`March::is_full_step`]`(i + 1)`), from its index.
+    #[inline(always)]
+    fn whole_step_middle(&self, i: usize) -> f64 {
+        self.t0 + (i as i64 as f64 + 0.5 + self.shift) * self.dt
     }
 
     /// True when the segment from sample `i - 1` to sample `i` (`i >= 1`) is a whole
@@ -177,10 +190,8 @@ impl Lattice for March {
     #[inline(always)]
     fn fill(&self, from: usize, ts: &mut [f64]) {
         if from + ts.len() <= self.full_steps + 1 {
-            for (k, out) in ts.iter_mut().enumerate() {
-                let t = self.t0 + ((from + k) as i64 as f64 + self.shift) * self.dt;
-                let t = if t > self.t0 { t } else { self.t0 };
-                *out = if t < self.t1 { t } else { self.t1 };
+            for (k, t) in ts.iter_mut().enumerate() {
+                *t = self.t_before_end(from + k);
             }
         } else {
             for (k, t) in ts.iter_mut().enumerate() {
@@ -206,7 +217,7 @@ impl Lattice for Midpoints<'_> {
     fn t(&self, i: usize) -> f64 {
         let m = self.0;
         if m.is_full_step(i + 1) {
-            m.t0 + (i as i64 as f64 + 0.5 + m.shift) * m.dt
+            m.whole_step_middle(i)
         } else {
             0.5 * (m.t(i) + m.t(i + 1))
         }
@@ -224,7 +235,7 @@ impl Lattice for Midpoints<'_> {
         let m = self.0;
         if m.is_full_step(from + 1) && m.is_full_step(from + ts.len()) {
             for (k, t) in ts.iter_mut().enumerate() {
-                *t = m.t0 + ((from + k) as i64 as f64 + 0.5 + m.shift) * m.dt;
+                *t = m.whole_step_middle(from + k);
             }
         } else {
             for (k, t) in ts.iter_mut().enumerate() {

@@ -583,8 +583,9 @@ mod tests {
         for norm in [Normalize::new(0.0, 1.0), Normalize::new(1.0, -0.5)] {
             check(&floats, norm);
             check(&floats.map(f64::from), norm);
-            check(&[-7i32, 3, 0, 12, -1, 5, 9, 2], Normalize::new(-4.0, 8.0));
+            check(&[-7i32, 3, 0, 12, -1, 5, 9, 2], norm);
             check(&[7u64, 3, 0, 12, 1, 5, 9, 2], norm);
         }
+        check(&[-7i32, 3, 0, 12, -1, 5, 9, 2], Normalize::new(-4.0, 8.0));
     }
 }
