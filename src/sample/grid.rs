@@ -67,7 +67,7 @@ pub struct Grid<'a, T: Voxel> {
     /// allow it.
     #[cfg(target_arch = "x86_64")]
     gather: Option<avx2::Gather>,
-    /// The gathers run eight lanes wide (`avx512.rs`): `gather` is set and the
+    /// The vector path runs eight lanes wide (`avx512.rs`): `gather` is set and the
     /// machine has AVX-512.
     #[cfg(target_arch = "x86_64")]
     wide: bool,
@@ -216,7 +216,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
         out: &mut [f32],
         cache: &mut CellCache,
     ) {
-        // the vector paths exist for the types the gathers read (a constant per `T`,
+        // the vector paths exist for the types they read (a constant per `T`,
         // so the other types do not compile them)
         #[cfg(target_arch = "x86_64")]
         if const { avx2::Gather::reads(T::TYPE) } {

@@ -1,6 +1,8 @@
 //! Trilinear samples four at a time with AVX2 (detected at run time): the positions,
 //! the cell search and the interpolation in vector lanes, one sample per lane, the
-//! voxels fetched by gathers. Each lane does the operations of
+//! voxels read lane by lane with scalar loads ([`f32_pair`]: not with the gather
+//! instructions, which cost several times as much on this project's machines). Each
+//! lane does the operations of
 //! [`Grid::trilinear_sse2`] in the same order (no fused multiply-add), so a sample has
 //! the same bits whichever path takes it, on any machine.
 
@@ -10,7 +12,7 @@ use super::Grid;
 use crate::sample::Normalize;
 use crate::volume::{ScalarType, Voxel};
 
-/// The voxel storage the gathers read.
+/// The voxel storage the vector paths read.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Gather {
     /// float32 voxels, normalised in f64 lanes.
@@ -26,7 +28,7 @@ pub(super) enum Gather {
 }
 
 impl Gather {
-    /// The storage a gather path reads voxels of type `ty` as, if any: float32
+    /// The storage a vector path reads voxels of type `ty` as, if any: float32
     /// voxels as they are, 8- and 16-bit ones as the raw bits that index the
     /// normalisation table (signed data is read through them, see `bits_table`).
     const fn storage(ty: ScalarType) -> Option<Gather> {
@@ -38,12 +40,12 @@ impl Gather {
         }
     }
 
-    /// Whether a gather path reads voxels of type `ty`.
+    /// Whether a vector path reads voxels of type `ty`.
     pub(super) const fn reads(ty: ScalarType) -> bool {
         Gather::storage(ty).is_some()
     }
 
-    /// The gather path for voxels of type `T` on a grid of `n` voxels per axis, if
+    /// The vector path for voxels of type `T` on a grid of `n` voxels per axis, if
     /// this machine has AVX2 and the grid suits it: the cell search converts to i32
     /// and the flat index multiplies 32-bit lanes, and the x axis has two voxels (so
     /// a cell's two voxels along x are adjacent in memory).
@@ -61,7 +63,7 @@ impl Gather {
 
 /// What the vector paths broadcast into their lanes for one call.
 pub(super) struct LaneConstants {
-    /// The voxel storage the gathers read.
+    /// The voxel storage the vector paths read.
     pub kind: Gather,
     /// Per axis: the ray's origin and direction, the last voxel and the last cell's
     /// first voxel (positions are clamped to them).
@@ -70,11 +72,6 @@ pub(super) struct LaneConstants {
     pub strides: [i64; 2],
     /// The flat offsets of a cell's four rows along x (y0z0, y1z0, y0z1, y1z1).
     pub rows: [i64; 4],
-    /// The largest cell start whose rows the gathers may read: 8-bit rows are read
-    /// four bytes at a time, so a cell whose last row ends within two bytes of the
-    /// data's end must be sampled otherwise (`None`: the data is too short for any
-    /// cell, so every cell is; no limit for the other types).
-    pub safe: Option<i64>,
 }
 
 impl<T: Voxel> Grid<'_, T> {
@@ -82,17 +79,11 @@ impl<T: Voxel> Grid<'_, T> {
     pub(super) fn lane_constants(&self, o: [f64; 3], d: [f64; 3]) -> LaneConstants {
         let kind = self.gather.expect("the caller checked the gather path");
         let [_, dy, dz] = self.step;
-        let len = self.voxels.len();
-        let safe = match kind {
-            Gather::Bits8 => len.checked_sub(4 + dy + dz),
-            _ => Some(usize::MAX),
-        };
         LaneConstants {
             kind,
             axes: [0, 1, 2].map(|a| [o[a], d[a], self.last[a], self.top_f[a]]),
             strides: [self.sx as i64, self.sxy as i64],
             rows: [0, dy, dz, dy + dz].map(|r| r as i64),
-            safe: safe.map(|s| s.min(i64::MAX as usize) as i64),
         }
     }
 }
@@ -122,8 +113,6 @@ impl<T: Voxel> Grid<'_, T> {
         });
         let [sx, sxy] = c.strides.map(|s| _mm256_set1_epi64x(s));
         let rows = c.rows.map(|r| _mm256_set1_epi64x(r));
-        // a cell starting after `safe` is sampled one lane at a time instead
-        let safe = c.safe.map(|s| _mm256_set1_epi64x(s));
         let groups = ts.len() / 4;
         for g in 0..groups {
             let t = _mm256_loadu_pd(ts.as_ptr().add(4 * g));
@@ -149,25 +138,12 @@ impl<T: Voxel> Grid<'_, T> {
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits16 => {
-                    let c = rows.map(|r| self.row_bits::<2>(_mm256_add_epi64(base, r), 0xffff, 16));
+                    let c = rows.map(|r| self.row_bits::<2>(_mm256_add_epi64(base, r)));
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits8 => {
-                    let safe = safe.is_some_and(|s| {
-                        _mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpgt_epi64(base, s))) == 0
-                    });
-                    if safe {
-                        let c =
-                            rows.map(|r| self.row_bits::<1>(_mm256_add_epi64(base, r), 0xff, 8));
-                        interpolate(c, fx, fy, fz)
-                    } else {
-                        let mut lanes = [0.0f32; 4];
-                        for (l, v) in lanes.iter_mut().enumerate() {
-                            let t = ts[4 * g + l];
-                            *v = self.trilinear([0, 1, 2].map(|a| o[a] + d[a] * t));
-                        }
-                        _mm_loadu_ps(lanes.as_ptr())
-                    }
+                    let c = rows.map(|r| self.row_bits::<1>(_mm256_add_epi64(base, r)));
+                    interpolate(c, fx, fy, fz)
                 }
             };
             _mm_storeu_ps(out.as_mut_ptr().add(4 * g), sample);
@@ -185,11 +161,10 @@ impl<T: Voxel> Grid<'_, T> {
     #[inline]
     unsafe fn row_f32<const UNIT: bool>(&self, at: __m256i) -> (__m128, __m128) {
         // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
-        // voxel; each lane reads the two adjacent float32 as one 64-bit element
-        let pairs = _mm256_castpd_ps(_mm256_i64gather_pd::<4>(
-            self.voxels.as_ptr().cast::<f64>(),
-            at,
-        ));
+        // voxel; each lane reads the two adjacent float32 as one 64-bit word
+        let at: [i64; 4] = std::mem::transmute(at);
+        let w = |k: usize| f32_pair(self.voxels.as_ptr().cast(), at[k]);
+        let pairs = _mm256_castsi256_ps(_mm256_set_epi64x(w(3), w(2), w(1), w(0)));
         let lo = _mm256_castps256_ps128(pairs); // a0 b0 a1 b1
         let hi = _mm256_extractf128_ps::<1>(pairs); // a2 b2 a3 b3
         let a = _mm_shuffle_ps::<0b10_00_10_00>(lo, hi);
@@ -212,26 +187,65 @@ impl<T: Voxel> Grid<'_, T> {
     }
 
     /// The normalised 8- or 16-bit voxels (`BYTES` per voxel) at flat indices `at`
-    /// and `at + 1` of each lane, through the normalisation table: the lane reads
-    /// four bytes at voxel `at` and splits them by `mask` and `shift`.
+    /// and `at + 1` of each lane, through the normalisation table.
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn row_bits<const BYTES: i32>(
-        &self,
-        at: __m256i,
-        mask: i32,
-        shift: i32,
-    ) -> (__m128, __m128) {
-        // SAFETY (the caller's): 16-bit voxels `at` and `at + 1` are the four bytes;
-        // for 8-bit data the caller checked that `at + 3` is inside the data
-        let words = _mm256_i64gather_epi32::<BYTES>(self.voxels.as_ptr().cast::<i32>(), at);
-        let mask = _mm_set1_epi32(mask);
-        let a = _mm_and_si128(words, mask);
-        let b = _mm_and_si128(_mm_srl_epi32(words, _mm_cvtsi32_si128(shift)), mask);
-        // SAFETY: the table has 2^(8 BYTES) entries and every index is below that
-        let lut = self.lut.as_ptr();
-        (_mm_i32gather_ps::<4>(lut, a), _mm_i32gather_ps::<4>(lut, b))
+    unsafe fn row_bits<const BYTES: usize>(&self, at: __m256i) -> (__m128, __m128) {
+        let at: [i64; 4] = std::mem::transmute(at);
+        // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
+        // voxel
+        let [a, b] = self.row_bits_lanes::<BYTES, 4>(at);
+        (_mm_loadu_ps(a.as_ptr()), _mm_loadu_ps(b.as_ptr()))
     }
+
+    /// The normalised 8- or 16-bit voxels (`BYTES` per voxel) at flat indices `at`
+    /// and `at + 1` of each of `N` lanes, through the normalisation table, one lane
+    /// at a time (scalar loads, as [`f32_pair`]).
+    ///
+    /// # Safety
+    /// Every `at` and `at + 1` is a voxel of the grid, which holds `BYTES`-byte
+    /// voxels, and `BYTES` is 1 or 2.
+    #[inline(always)]
+    pub(super) unsafe fn row_bits_lanes<const BYTES: usize, const N: usize>(
+        &self,
+        at: [i64; N],
+    ) -> [[f32; N]; 2] {
+        debug_assert!(BYTES <= 2 && self.lut.len() == 1 << (8 * BYTES));
+        let data = self.voxels.as_ptr().cast::<u8>();
+        // SAFETY: the table has 2^(8 BYTES) entries (`Grid::new`: one per value of
+        // the voxel type, whose size `BYTES` is) and every index is below that
+        let lut = |i: u32| *self.lut.get_unchecked(i as usize);
+        let mut a = [0.0f32; N];
+        let mut b = [0.0f32; N];
+        for k in 0..N {
+            // voxels `at` and `at + 1`: 2 BYTES bytes, inside the data (the caller's)
+            let p = data.add(at[k] as usize * BYTES);
+            let (lo, hi) = if BYTES == 1 {
+                let w = u32::from(p.cast::<u16>().read_unaligned());
+                (w & 0xff, w >> 8)
+            } else {
+                let w = p.cast::<u32>().read_unaligned();
+                (w & 0xffff, w >> 16)
+            };
+            a[k] = lut(lo);
+            b[k] = lut(hi);
+        }
+        [a, b]
+    }
+}
+
+/// The two adjacent float32 voxels at flat index `at` of `data`, as one 64-bit
+/// word: what each lane of the float32 paths reads, with a scalar load rather
+/// than a gather instruction. On the machines this project runs on, a gather is
+/// microcoded (the 2023 "Gather Data Sampling" mitigation): about 29 cycles each,
+/// whatever its width, where eight scalar loads and the inserts that make them a
+/// vector take about 7 (measured: bench/peers/README.md, "Loads, not gathers").
+///
+/// # Safety
+/// Voxels `at` and `at + 1` are inside `data`'s allocation.
+#[inline(always)]
+pub(super) unsafe fn f32_pair(data: *const f32, at: i64) -> i64 {
+    data.add(at as usize).cast::<i64>().read_unaligned()
 }
 
 /// One axis' broadcast constants: the ray's origin and direction, the clamp to the
@@ -282,7 +296,7 @@ mod tests {
     /// Samples along random rays (inside, across and outside the grid, with NaN and
     /// out-of-window voxels, on grids whose last row ends the data) taken four (AVX2)
     /// or eight (AVX-512) at a time have the bits of one sample at a time, for each
-    /// voxel type the gathers read.
+    /// voxel type the vector paths read.
     fn along_is_one_at_a_time<T: Voxel>(
         voxel: impl Fn(usize) -> T,
         norm: Normalize,

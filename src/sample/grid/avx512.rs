@@ -1,13 +1,13 @@
 //! Trilinear samples eight at a time with AVX-512 (detected at run time): the
 //! AVX2 path of `avx2.rs` on twice as many lanes. The positions and the cell search
-//! take 512-bit f64 lanes, the gathers 64-bit indices in 512-bit vectors, and the
-//! interpolation 256-bit f32 lanes. Each lane does the operations of
+//! take 512-bit f64 lanes, the voxel loads 64-bit indices in 512-bit vectors (read
+//! lane by lane, as in `avx2.rs`), and the interpolation 256-bit f32 lanes. Each lane does the operations of
 //! [`Grid::trilinear_sse2`] in the same order (no fused multiply-add), so a sample
 //! has the same bits whichever path takes it.
 
 use std::arch::x86_64::*;
 
-use super::avx2::Gather;
+use super::avx2::{f32_pair, Gather};
 use super::Grid;
 use crate::volume::Voxel;
 
@@ -28,8 +28,8 @@ struct Axis {
 impl<T: Voxel> Grid<'_, T> {
     /// The trilinear samples at `o + d t` (index space) for each `t` of `ts`, into
     /// `out` (as long as `ts`), eight at a time: the bits of [`Grid::trilinear`] at
-    /// each position. The last `ts.len() % 8` samples, and a group of 8-bit cells
-    /// that end near the data's end, go through [`Grid::trilinear_avx2`].
+    /// each position. The last `ts.len() % 8` samples go through
+    /// [`Grid::trilinear_avx2`].
     ///
     /// # Safety
     /// The machine has AVX-512F and AVX2 ([`available`]) and `self.gather` is
@@ -53,8 +53,6 @@ impl<T: Voxel> Grid<'_, T> {
         });
         let [sx, sxy] = c.strides.map(|s| _mm512_set1_epi64(s));
         let rows = c.rows.map(|r| _mm512_set1_epi64(r));
-        // a group with a cell starting after `safe` goes through the AVX2 path
-        let safe = c.safe.map(|s| _mm512_set1_epi64(s));
         let groups = ts.len() / 8;
         for g in 0..groups {
             let at = 8 * g;
@@ -80,18 +78,11 @@ impl<T: Voxel> Grid<'_, T> {
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits16 => {
-                    let c =
-                        rows.map(|r| self.row_bits_x8::<2>(_mm512_add_epi64(base, r), 0xffff, 16));
+                    let c = rows.map(|r| self.row_bits_x8::<2>(_mm512_add_epi64(base, r)));
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits8 => {
-                    let safe = safe.is_some_and(|s| _mm512_cmpgt_epi64_mask(base, s) == 0);
-                    if !safe {
-                        let (t, v) = (&ts[at..at + 8], &mut out[at..at + 8]);
-                        self.trilinear_avx2(o, d, t, v);
-                        continue;
-                    }
-                    let c = rows.map(|r| self.row_bits_x8::<1>(_mm512_add_epi64(base, r), 0xff, 8));
+                    let c = rows.map(|r| self.row_bits_x8::<1>(_mm512_add_epi64(base, r)));
                     interpolate(c, fx, fy, fz)
                 }
             };
@@ -107,8 +98,10 @@ impl<T: Voxel> Grid<'_, T> {
     #[inline]
     unsafe fn row_f32_x8<const UNIT: bool>(&self, at: __m512i) -> (__m256, __m256) {
         // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
-        // voxel; each lane reads the two adjacent float32 as one 64-bit element
-        let pairs = _mm512_i64gather_epi64::<4>(at, self.voxels.as_ptr().cast::<i64>());
+        // voxel; each lane reads the two adjacent float32 as one 64-bit word
+        let at: [i64; 8] = std::mem::transmute(at);
+        let w = |k: usize| f32_pair(self.voxels.as_ptr().cast(), at[k]);
+        let pairs = _mm512_set_epi64(w(7), w(6), w(5), w(4), w(3), w(2), w(1), w(0));
         // the low and high halves of each 64-bit element: voxels `at` and `at + 1`
         let a = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(pairs));
         let b = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(_mm512_srli_epi64::<32>(pairs)));
@@ -133,24 +126,12 @@ impl<T: Voxel> Grid<'_, T> {
     /// and `at + 1` of each of eight lanes, through the normalisation table.
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
-    unsafe fn row_bits_x8<const BYTES: i32>(
-        &self,
-        at: __m512i,
-        mask: i32,
-        shift: i32,
-    ) -> (__m256, __m256) {
-        // SAFETY (the caller's): 16-bit voxels `at` and `at + 1` are the four bytes;
-        // for 8-bit data the caller checked that `at + 3` is inside the data
-        let words = _mm512_i64gather_epi32::<BYTES>(at, self.voxels.as_ptr().cast::<i32>());
-        let mask = _mm256_set1_epi32(mask);
-        let a = _mm256_and_si256(words, mask);
-        let b = _mm256_and_si256(_mm256_srl_epi32(words, _mm_cvtsi32_si128(shift)), mask);
-        // SAFETY: the table has 2^(8 BYTES) entries and every index is below that
-        let lut = self.lut.as_ptr();
-        (
-            _mm256_i32gather_ps::<4>(lut, a),
-            _mm256_i32gather_ps::<4>(lut, b),
-        )
+    unsafe fn row_bits_x8<const BYTES: usize>(&self, at: __m512i) -> (__m256, __m256) {
+        let at: [i64; 8] = std::mem::transmute(at);
+        // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
+        // voxel
+        let [a, b] = self.row_bits_lanes::<BYTES, 8>(at);
+        (_mm256_loadu_ps(a.as_ptr()), _mm256_loadu_ps(b.as_ptr()))
     }
 }
 
