@@ -89,15 +89,33 @@ impl Table1D {
     /// [0, 1] and NaN gives entry 0.
     #[inline(always)]
     pub fn lookup(&self, v: f32) -> [f32; 4] {
+        self.lookup_at(table_position(v, (self.entries.len() - 1) as f32))
+    }
+
+    /// RGBA at the table position `x`, which [`table_position`] gave for this table
+    /// (`v` and the number of entries less one): [`Table1D::lookup`] for a caller
+    /// that already has the position (the composite's test for clear samples).
+    #[inline(always)]
+    pub(crate) fn lookup_at(&self, x: f32) -> [f32; 4] {
         let last = self.entries.len() - 1;
-        let x = table_position(v, last as f32);
-        // x is in [0, last]: truncation is floor; one instruction through i32, where a
-        // checked conversion to usize takes several (tables have fewer than 2^31
-        // entries: see `table`)
-        let i = (x as i32 as usize).min(last - 1);
+        debug_assert!((0.0..=last as f32).contains(&x), "{x} outside [0, {last}]");
+        // `table_position` gives [0, last]; clamped again (NaN to 0, two comparisons
+        // that compile to max and min) so that any `x` reads inside the table
+        let x = if x > 0.0 { x } else { 0.0 };
+        let x = if x < last as f32 { x } else { last as f32 };
+        // truncation is floor for x >= 0; one instruction through i32 (tables have
+        // fewer than 2^31 entries: see `table`)
+        // SAFETY: x is in [0, last], which an i32 holds
+        let i = (unsafe { x.to_int_unchecked::<i32>() } as usize).min(last - 1);
         let t = x - i as f32;
-        // `i + 1 <= last`: in bounds (the bounds check folds away with `min`)
-        let (a, b) = (self.entries[i], self.entries[i + 1]);
+        // SAFETY: a table has at least two entries (`table`; `map_alpha` keeps the
+        // length), so `last >= 1` and `i + 1 <= last`
+        let (a, b) = unsafe {
+            (
+                *self.entries.get_unchecked(i),
+                *self.entries.get_unchecked(i + 1),
+            )
+        };
         lerp4(a, b, t)
     }
 

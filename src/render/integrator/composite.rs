@@ -99,12 +99,14 @@ impl Tables {
 trait Lookup {
     /// RGBA of value `v` at `p()` (index space; asked for the gradient magnitude of
     /// 2D tables only, expressed per voxel with `voxel_length`), with the gradient
-    /// when one was computed.
+    /// when one was computed; `x` is `v`'s position along the value axis
+    /// ([`Composite::position`]).
     fn rgba<F: Field>(
         &self,
         field: &F,
         p: impl FnOnce() -> DVec3,
         v: f32,
+        x: f32,
         voxel_length: f64,
     ) -> ([f32; 4], Option<DVec3>);
 }
@@ -115,10 +117,11 @@ impl Lookup for Table1D {
         &self,
         _field: &F,
         _p: impl FnOnce() -> DVec3,
-        v: f32,
+        _v: f32,
+        x: f32,
         _voxel_length: f64,
     ) -> ([f32; 4], Option<DVec3>) {
-        (self.lookup(v), None)
+        (self.lookup_at(x), None)
     }
 }
 
@@ -129,6 +132,7 @@ impl Lookup for Table2D {
         field: &F,
         p: impl FnOnce() -> DVec3,
         v: f32,
+        _x: f32,
         voxel_length: f64,
     ) -> ([f32; 4], Option<DVec3>) {
         let g = field.gradient(p());
@@ -270,10 +274,22 @@ impl Composite {
     /// step keeps it zero). Most samples a composite takes in a cell that is not
     /// passed over are clear, so this test saves their lookup (and the gradient of
     /// a 2D table).
-    #[inline(always)]
+    #[cfg(test)]
     fn clear(&self, v: f32) -> bool {
-        // the position as the tables' lookups compute it
-        table_position(v, self.value_last) <= self.clear_up_to
+        self.clear_at(self.position(v))
+    }
+
+    /// [`Composite::clear`] from the value's table position.
+    #[inline(always)]
+    fn clear_at(&self, x: f32) -> bool {
+        x <= self.clear_up_to
+    }
+
+    /// The position of value `v` along the tables' value axis, as their lookups
+    /// compute it.
+    #[inline(always)]
+    fn position(&self, v: f32) -> f32 {
+        table_position(v, self.value_last)
     }
 }
 
@@ -381,7 +397,8 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     #[inline(always)]
     fn take(&mut self, i: usize, t: f64, v: f32) -> ControlFlow<()> {
         let p = self.pass;
-        if p.clear(v) {
+        let x = p.position(v);
+        if p.clear_at(x) {
             return ControlFlow::Continue(());
         }
         let full = self.march.is_full_step(i + 1);
@@ -391,14 +408,17 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
             let (rgba, grad) = self
                 .tables
                 .full_step
-                .rgba(self.field, pos, v, p.voxel_length);
+                .rgba(self.field, pos, v, x, p.voxel_length);
             (rgba, grad, rgba[3])
         } else {
             let length = self.march.t(i + 1) - self.march.t(i);
             if length <= 0.0 {
                 return ControlFlow::Continue(());
             }
-            let (rgba, grad) = self.tables.given.rgba(self.field, pos, v, p.voxel_length);
+            let (rgba, grad) = self
+                .tables
+                .given
+                .rgba(self.field, pos, v, x, p.voxel_length);
             let a = correct_opacity(rgba[3], (length / p.reference_step) as f32);
             (rgba, grad, a)
         };
