@@ -85,6 +85,8 @@ pub struct March {
     tail: bool,
     /// The first segment that is a whole step: 1, or 2 when jittered.
     first_full: usize,
+    /// The number of whole-step segments, `first_full..=full_steps` (0 when none).
+    full_count: usize,
 }
 
 impl March {
@@ -102,6 +104,7 @@ impl March {
         let full_steps = (len / dt - shift).floor() as usize;
         // a tail shorter than a millionth of a step is merged into the last sample
         let tail = len - (full_steps as f64 + shift) * dt > 1e-6 * dt;
+        let first_full = if shift == 0.0 { 1 } else { 2 };
         March {
             t0,
             t1,
@@ -109,7 +112,8 @@ impl March {
             shift,
             full_steps,
             tail,
-            first_full: if shift == 0.0 { 1 } else { 2 },
+            first_full,
+            full_count: full_steps.saturating_add(1).saturating_sub(first_full),
         }
     }
 
@@ -161,7 +165,8 @@ impl March {
     /// step long: every segment but a jittered first one and the shorter last one.
     #[inline(always)]
     pub fn is_full_step(&self, i: usize) -> bool {
-        i >= self.first_full && i <= self.full_steps
+        // `first_full <= i <= full_steps` as one unsigned comparison
+        i.wrapping_sub(self.first_full) < self.full_count
     }
 
     /// The step.
@@ -298,6 +303,23 @@ mod tests {
         let m = March::jittered(1.0, 3.5, 1.0, 0.25); // 1, 1.75, 2.75, 3.5
         let full: Vec<bool> = (1..m.len()).map(|i| m.is_full_step(i)).collect();
         assert_eq!(full, vec![false, true, false]);
+        // no whole step: shorter than a step, jittered or not, and an empty segment
+        for m in [
+            March::new(0.0, 0.7, 1.0),
+            March::jittered(0.0, 0.7, 1.0, 0.5),
+            March::jittered(0.0, 1.2, 1.0, 0.5), // 0, 0.5, 1.2
+            March::new(2.0, 2.0, 0.5),
+        ] {
+            assert!((0..m.len() + 3).all(|i| !m.is_full_step(i)), "{m:?}");
+        }
+        // the segments between whole-step positions, and none at index 0 or past the end
+        for (t1, jitter) in [(9.0, 0.0), (9.3, 0.0), (9.0, 0.4), (9.3, 0.9)] {
+            let m = March::jittered(0.0, t1, 1.0, jitter);
+            for i in 0..m.len() + 3 {
+                let whole = i >= 1 && i < m.len() && (m.t(i) - m.t(i - 1) - 1.0).abs() < 1e-12;
+                assert_eq!(m.is_full_step(i), whole, "{m:?} {i}");
+            }
+        }
     }
 
     #[test]
