@@ -541,7 +541,24 @@ fn shade<F: Field>(
     base: Vec3,
     to_eye: Vec3,
 ) -> Vec3 {
-    let Some(shader) = shader else { return base };
+    match shader {
+        None => base,
+        Some(shader) => shaded(shader, field, ray, t, gradient, base, to_eye),
+    }
+}
+
+/// [`shade`] where the pass shades: out of line, so that the unshaded loop does not
+/// set up its arguments for every sample.
+#[inline(never)]
+fn shaded<F: Field>(
+    shader: &Shader,
+    field: &F,
+    ray: &PixelRay,
+    t: f64,
+    gradient: Option<DVec3>,
+    base: Vec3,
+    to_eye: Vec3,
+) -> Vec3 {
     let g = gradient.unwrap_or_else(|| field.gradient(ray.index.at(t)));
     let normal = normal_from_gradient(g, ray.dir);
     shader.shade(
