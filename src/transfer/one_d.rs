@@ -107,7 +107,8 @@ impl Table1D {
         // fewer than 2^31 entries: see `table`)
         // SAFETY: x is in [0, last], which an i32 holds
         let i = (unsafe { x.to_int_unchecked::<i32>() } as usize).min(last - 1);
-        let t = x - i as f32;
+        // through u32 (i < 2^31): one conversion, where one from usize tests the sign
+        let t = x - i as u32 as f32;
         // SAFETY: a table has at least two entries (`table`; `map_alpha` keeps the
         // length), so `last >= 1` and `i + 1 <= last`
         let (a, b) = unsafe {

@@ -20,7 +20,7 @@
 
 use std::ops::ControlFlow;
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec4};
 
 use super::crossing::normal_from_gradient;
 use super::{drive, Consumer, Counts, Integrand, PixelRay};
@@ -425,7 +425,7 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
         if a <= 0.0 {
             return ControlFlow::Continue(());
         }
-        let base = Vec3::new(rgba[0], rgba[1], rgba[2]);
+        let base = Vec4::from_array(rgba);
         let c = shade(
             p.shader.as_ref(),
             self.field,
@@ -474,7 +474,7 @@ impl<F: Field> Segments<'_, F> {
             return ControlFlow::Continue(());
         }
         let t_mid = 0.5 * (t_prev + t);
-        let base = Vec3::from_array(rgb);
+        let base = Vec3::from_array(rgb).extend(0.0);
         let c = shade(
             p.shader.as_ref(),
             self.field,
@@ -529,8 +529,10 @@ impl<F: Field> Consumer for Segments<'_, F> {
     }
 }
 
-/// The colour of a sample: the transfer function's colour `base`, shaded where the
-/// pass shades (with the gradient already computed for a 2D transfer function, if any).
+/// The colour of a sample: the transfer function's colour `base` (its first three
+/// lanes; the fourth is not used), shaded where the pass shades (with the gradient
+/// already computed for a 2D transfer function, if any). Four lanes, so that an
+/// unshaded colour stays in the register it was looked up in.
 #[inline(always)]
 fn shade<F: Field>(
     shader: Option<&Shader>,
@@ -538,9 +540,9 @@ fn shade<F: Field>(
     ray: &PixelRay,
     t: f64,
     gradient: Option<DVec3>,
-    base: Vec3,
+    base: Vec4,
     to_eye: Vec3,
-) -> Vec3 {
+) -> Vec4 {
     match shader {
         None => base,
         Some(shader) => shaded(shader, field, ray, t, gradient, base, to_eye),
@@ -556,17 +558,19 @@ fn shaded<F: Field>(
     ray: &PixelRay,
     t: f64,
     gradient: Option<DVec3>,
-    base: Vec3,
+    base: Vec4,
     to_eye: Vec3,
-) -> Vec3 {
+) -> Vec4 {
     let g = gradient.unwrap_or_else(|| field.gradient(ray.index.at(t)));
     let normal = normal_from_gradient(g, ray.dir);
-    shader.shade(
-        ray.world(t).as_vec3(),
-        normal.map(|n| n.as_vec3()),
-        to_eye,
-        base,
-    )
+    shader
+        .shade(
+            ray.world(t).as_vec3(),
+            normal.map(|n| n.as_vec3()),
+            to_eye,
+            base.truncate(),
+        )
+        .extend(0.0)
 }
 
 /// Front-to-back accumulation (REFERENCE.md: `C' += (1 - A') C_i`, `A' += (1 - A') A_i`)
@@ -586,11 +590,12 @@ impl FrontToBack {
         }
     }
 
-    /// Adds a sample of colour `c` and opacity `a`; `Break` once the ray may stop.
+    /// Adds a sample of colour `c` (its first three lanes) and opacity `a`; `Break`
+    /// once the ray may stop.
     #[inline(always)]
-    fn add(&mut self, c: Vec3, a: f32) -> ControlFlow<()> {
+    fn add(&mut self, c: Vec4, a: f32) -> ControlFlow<()> {
         let w = (1.0 - self.alpha) * f64::from(a);
-        self.color += c.as_dvec3() * w;
+        self.color += c.truncate().as_dvec3() * w;
         self.alpha += w;
         if self.alpha >= self.early_stop {
             ControlFlow::Break(())
