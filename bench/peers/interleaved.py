@@ -7,7 +7,7 @@ seconds per frame = (T(--frames 0..N) - T(--frames 0..1)) / (N - 1), CPU (user +
 of the process) and wall. Prints the medians, each binary's CPU median over the first's,
 and every repetition's wall time.
 
-Usage: interleaved.py SCENE BINARY [BINARY ...] [--data DIR] [--reps R] [--threads T] [--frames N]
+Usage: interleaved.py SCENE BINARY [BINARY ...] [--data DIR] [--reps R] [--threads T] [--frames N] [--u8]
   e.g. interleaved.py ortho_composite /tmp/volcast-before target/release/volcast --frames 6
 """
 import argparse
@@ -31,12 +31,17 @@ def main():
     ap.add_argument("--reps", type=int, default=7)
     ap.add_argument("--threads", default="2")
     ap.add_argument("--frames", type=int, default=6)
+    ap.add_argument("--u8", action="store_true",
+                    help="render the uint8 volume (window [0, 255]) instead of the float32 one")
     a = ap.parse_args()
     work = tempfile.mkdtemp()
     try:
         text = open(os.path.join(HERE, "scenes", a.scene + ".toml")).read()
         text = text.replace("/work/peers-data", a.data)
         text = re.sub(r"(?m)^frames = \d+", f"frames = {a.frames}", text)
+        if a.u8:
+            text = text.replace("volume_f32.nrrd", "volume_u8.nrrd")
+            text = re.sub(r"(?m)^window = .*", "window = [0.0, 255.0]", text)
         scene = os.path.join(work, a.scene + ".toml")
         open(scene, "w").write(text)
         out = os.path.join(work, "out")
@@ -66,7 +71,8 @@ def main():
             c = statistics.median(res[b][0])
             w = statistics.median(res[b][1])
             walls = " ".join(f"{x:.3f}" for x in res[b][1])
-            print(f"{b:40s} cpu {c:.4f} wall {w:.4f} cpu/first {c / base:.3f}  walls {walls}")
+            print(f"{b:40s} cpu {c:.4f} (fastest {min(res[b][0]):.4f}) wall {w:.4f} "
+                  f"cpu/first {c / base:.3f}  walls {walls}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
