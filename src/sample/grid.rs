@@ -6,6 +6,22 @@ use glam::{DMat3, DVec3};
 use super::{filter, GradientMethod, Normalize};
 use crate::volume::{ScalarType, Voxel, Voxels};
 
+/// The four rows of a group of lanes' cells, `[$row($add($base, $rows[r]))]` for
+/// r = 0..4, written out: the closure of `array::map` is not always inlined, and
+/// where it is not, the vector paths pay a call and a copy per row (the compiler's
+/// choice moves with changes elsewhere in the crate).
+#[cfg(target_arch = "x86_64")]
+macro_rules! each_row {
+    ($self:ident . $row:ident :: <$k:tt>, $add:ident, $base:expr, $rows:expr) => {
+        [
+            $self.$row::<$k>($add($base, $rows[0])),
+            $self.$row::<$k>($add($base, $rows[1])),
+            $self.$row::<$k>($add($base, $rows[2])),
+            $self.$row::<$k>($add($base, $rows[3])),
+        ]
+    };
+}
+
 #[cfg(target_arch = "x86_64")]
 mod avx2;
 #[cfg(target_arch = "x86_64")]

@@ -130,19 +130,19 @@ impl<T: Voxel> Grid<'_, T> {
             );
             let sample = match kind {
                 Gather::Float32 => {
-                    let c = rows.map(|r| self.row_f32::<false>(_mm256_add_epi64(base, r)));
+                    let c = each_row!(self.row_f32::<false>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Float32Unit => {
-                    let c = rows.map(|r| self.row_f32::<true>(_mm256_add_epi64(base, r)));
+                    let c = each_row!(self.row_f32::<true>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits16 => {
-                    let c = rows.map(|r| self.row_bits::<2>(_mm256_add_epi64(base, r)));
+                    let c = each_row!(self.row_bits::<2>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits8 => {
-                    let c = rows.map(|r| self.row_bits::<1>(_mm256_add_epi64(base, r)));
+                    let c = each_row!(self.row_bits::<1>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
             };
@@ -277,7 +277,13 @@ unsafe fn locate(a: &Axis, t: __m256d) -> (__m128i, __m128) {
 #[inline]
 unsafe fn interpolate(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m128) -> __m128 {
     let lerp = |a: __m128, b: __m128, t: __m128| _mm_add_ps(a, _mm_mul_ps(_mm_sub_ps(b, a), t));
-    let x = c.map(|(a, b)| lerp(a, b, fx));
+    // written out: `array::map`'s closure calls are not always inlined
+    let x = [
+        lerp(c[0].0, c[0].1, fx),
+        lerp(c[1].0, c[1].1, fx),
+        lerp(c[2].0, c[2].1, fx),
+        lerp(c[3].0, c[3].1, fx),
+    ];
     let y0 = lerp(x[0], x[1], fy);
     let y1 = lerp(x[2], x[3], fy);
     let v = lerp(y0, y1, fz);

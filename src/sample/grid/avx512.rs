@@ -70,19 +70,19 @@ impl<T: Voxel> Grid<'_, T> {
             );
             let sample = match kind {
                 Gather::Float32 => {
-                    let c = rows.map(|r| self.row_f32_x8::<false>(_mm512_add_epi64(base, r)));
+                    let c = each_row!(self.row_f32_x8::<false>, _mm512_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Float32Unit => {
-                    let c = rows.map(|r| self.row_f32_x8::<true>(_mm512_add_epi64(base, r)));
+                    let c = each_row!(self.row_f32_x8::<true>, _mm512_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits16 => {
-                    let c = rows.map(|r| self.row_bits_x8::<2>(_mm512_add_epi64(base, r)));
+                    let c = each_row!(self.row_bits_x8::<2>, _mm512_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits8 => {
-                    let c = rows.map(|r| self.row_bits_x8::<1>(_mm512_add_epi64(base, r)));
+                    let c = each_row!(self.row_bits_x8::<1>, _mm512_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
             };
@@ -154,7 +154,13 @@ unsafe fn locate(a: &Axis, t: __m512d) -> (__m256i, __m256) {
 unsafe fn interpolate(c: [(__m256, __m256); 4], fx: __m256, fy: __m256, fz: __m256) -> __m256 {
     let lerp =
         |a: __m256, b: __m256, t: __m256| _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), t));
-    let x = c.map(|(a, b)| lerp(a, b, fx));
+    // written out: `array::map`'s closure calls are not always inlined
+    let x = [
+        lerp(c[0].0, c[0].1, fx),
+        lerp(c[1].0, c[1].1, fx),
+        lerp(c[2].0, c[2].1, fx),
+        lerp(c[3].0, c[3].1, fx),
+    ];
     let y0 = lerp(x[0], x[1], fy);
     let y1 = lerp(x[2], x[3], fy);
     let v = lerp(y0, y1, fz);
