@@ -169,6 +169,27 @@ impl March {
         i.wrapping_sub(self.first_full) < self.full_count
     }
 
+    /// The samples both of whose segments (from `i - 1` to `i`, and from `i` to
+    /// `i + 1`) are whole steps ([`March::is_full_step`] of `i` and `i + 1`): the
+    /// first and how many, so that `i` is one when `i.wrapping_sub(first) < count`.
+    pub fn interior(&self) -> (usize, usize) {
+        (self.first_full, self.full_count.saturating_sub(1))
+    }
+
+    /// The length of the segment from sample `i - 1` to sample `i`: `dt` for a
+    /// whole step (exactly, where the difference of the two positions would carry
+    /// their rounding), the positions' difference for the others, 0 for `i = 0`
+    /// and for `i >= len()` (no such segment).
+    pub fn segment_length(&self, i: usize) -> f64 {
+        if i == 0 || i >= self.len() {
+            0.0
+        } else if self.is_full_step(i) {
+            self.dt
+        } else {
+            self.t(i) - self.t(i - 1)
+        }
+    }
+
     /// The step.
     pub fn dt(&self) -> f64 {
         self.dt

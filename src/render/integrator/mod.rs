@@ -135,6 +135,18 @@ pub trait Consumer {
     fn skip(&mut self, i: usize, j: usize) -> ControlFlow<()>;
     /// Sample `i`, at `t`, has value `f`; `Break` ends the ray.
     fn take(&mut self, i: usize, t: f64, f: f32) -> ControlFlow<()>;
+    /// Samples `from..from + values.len()`, at `ts`, have `values`: [`Consumer::take`]
+    /// of each in order, unless a consumer does the same for a batch at a time;
+    /// `Break(k)` when sample `from + k` ended the ray.
+    #[inline(always)]
+    fn take_batch(&mut self, from: usize, ts: &[f64], values: &[f32]) -> ControlFlow<usize> {
+        for k in 0..values.len() {
+            if self.take(from + k, ts[k], values[k]).is_break() {
+                return ControlFlow::Break(k);
+            }
+        }
+        ControlFlow::Continue(())
+    }
 }
 
 /// The one sampling loop: hands `consumer` the samples of `lattice` along `ray`
@@ -347,10 +359,9 @@ impl Batch {
                 &mut self.values[..m],
                 &mut self.cache,
             );
-            for k in 0..m {
-                if consumer.take(i + k, self.ts[k], self.values[k]).is_break() {
-                    return Some(i + k);
-                }
+            if let ControlFlow::Break(k) = consumer.take_batch(i, &self.ts[..m], &self.values[..m])
+            {
+                return Some(i + k);
             }
             i += m;
         }

@@ -418,7 +418,7 @@ impl Integrand for Average {
         let mean = if n == 1 || t1 <= t0 {
             t.first
         } else {
-            t.sum / (t1 - t0)
+            t.sum() / (t1 - t0)
         };
         let counts = Counts {
             taken,
