@@ -145,7 +145,13 @@ impl March {
         // converts through i64 (one instruction; the same value below 2^63); the
         // comparisons (not `f64::max`/`min`, which also handle NaN) keep the
         // position inside the segment in two instructions
-        let t = self.t0 + (i as i64 as f64 + self.shift) * self.dt;
+        self.t_at_index(i as i64 as f64)
+    }
+
+    /// [`March::t_before_end`] of the index `x`, given as a float (an integer).
+    #[inline(always)]
+    fn t_at_index(&self, x: f64) -> f64 {
+        let t = self.t0 + (x + self.shift) * self.dt;
         let t = if t > self.t0 { t } else { self.t0 };
         if t < self.t1 {
             t
@@ -158,7 +164,13 @@ impl March {
     /// ([`March::is_full_step`]`(i + 1)`), from its index.
     #[inline(always)]
     fn whole_step_middle(&self, i: usize) -> f64 {
-        self.t0 + (i as i64 as f64 + 0.5 + self.shift) * self.dt
+        self.middle_at_index(i as i64 as f64)
+    }
+
+    /// [`March::whole_step_middle`] of the index `x`, given as a float (an integer).
+    #[inline(always)]
+    fn middle_at_index(&self, x: f64) -> f64 {
+        self.t0 + (x + 0.5 + self.shift) * self.dt
     }
 
     /// True when the segment from sample `i - 1` to sample `i` (`i >= 1`) is a whole
@@ -215,7 +227,14 @@ impl Lattice for March {
     /// index per position: the same operations per position as [`March::t`].
     #[inline(always)]
     fn fill(&self, from: usize, ts: &mut [f64]) {
-        if from + ts.len() <= self.full_steps + 1 {
+        let end = from + ts.len();
+        if end <= self.full_steps + 1 && end <= i32::MAX as usize {
+            // indices below 2^31 convert through i32, which vectorises (two to a
+            // register on baseline x86-64); the same values as through i64
+            for (k, t) in ts.iter_mut().enumerate() {
+                *t = self.t_at_index((from + k) as i32 as f64);
+            }
+        } else if end <= self.full_steps + 1 {
             for (k, t) in ts.iter_mut().enumerate() {
                 *t = self.t_before_end(from + k);
             }
@@ -259,7 +278,13 @@ impl Lattice for Midpoints<'_> {
     #[inline(always)]
     fn fill(&self, from: usize, ts: &mut [f64]) {
         let m = self.0;
-        if m.is_full_step(from + 1) && m.is_full_step(from + ts.len()) {
+        let whole = m.is_full_step(from + 1) && m.is_full_step(from + ts.len());
+        if whole && from + ts.len() <= i32::MAX as usize {
+            // as in `March::fill`
+            for (k, t) in ts.iter_mut().enumerate() {
+                *t = m.middle_at_index((from + k) as i32 as f64);
+            }
+        } else if whole {
             for (k, t) in ts.iter_mut().enumerate() {
                 *t = m.whole_step_middle(from + k);
             }
@@ -371,6 +396,27 @@ mod tests {
                     for (k, t) in ts.iter().enumerate() {
                         assert_eq!(t.to_bits(), mid.t(from + k).to_bits());
                     }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn fill_beyond_two_to_the_31_gives_the_positions_too() {
+        // indices at and past i32::MAX take the other conversion
+        let m = March::jittered(-3.0, 3.0e9, 1.0, 0.3);
+        let mid = Midpoints(&m);
+        let top = i32::MAX as usize;
+        for from in top - 70..top + 5 {
+            for len in [1, 7, 64] {
+                let mut ts = vec![0.0; len];
+                m.fill(from, &mut ts);
+                for (k, t) in ts.iter().enumerate() {
+                    assert_eq!(t.to_bits(), m.t(from + k).to_bits(), "{from} {k}");
+                }
+                mid.fill(from, &mut ts);
+                for (k, t) in ts.iter().enumerate() {
+                    assert_eq!(t.to_bits(), mid.t(from + k).to_bits(), "{from} {k}");
                 }
             }
         }
