@@ -227,21 +227,28 @@ impl Lattice for March {
     /// index per position: the same operations per position as [`March::t`].
     #[inline(always)]
     fn fill(&self, from: usize, ts: &mut [f64]) {
-        let end = from + ts.len();
-        if end <= self.full_steps + 1 && end <= i32::MAX as usize {
-            // indices below 2^31 convert through i32, which vectorises (two to a
-            // register on baseline x86-64); the same values as through i64
-            for (k, t) in ts.iter_mut().enumerate() {
-                *t = self.t_at_index((from + k) as i32 as f64);
-            }
-        } else if end <= self.full_steps + 1 {
-            for (k, t) in ts.iter_mut().enumerate() {
-                *t = self.t_before_end(from + k);
-            }
+        if from + ts.len() <= self.full_steps + 1 {
+            fill_from_indices(from, ts, |x| self.t_at_index(x));
         } else {
             for (k, t) in ts.iter_mut().enumerate() {
                 *t = March::t(self, from + k);
             }
+        }
+    }
+}
+
+/// `ts[k] = at(from + k)`, the index given to `at` as a float: converted through
+/// i32 below 2^31, which vectorises (two to a register on baseline x86-64, where the
+/// conversion from i64 is scalar), through i64 above; the same values either way.
+#[inline(always)]
+fn fill_from_indices(from: usize, ts: &mut [f64], at: impl Fn(f64) -> f64) {
+    if from + ts.len() <= i32::MAX as usize {
+        for (k, t) in ts.iter_mut().enumerate() {
+            *t = at((from + k) as i32 as f64);
+        }
+    } else {
+        for (k, t) in ts.iter_mut().enumerate() {
+            *t = at((from + k) as i64 as f64);
         }
     }
 }
@@ -278,16 +285,8 @@ impl Lattice for Midpoints<'_> {
     #[inline(always)]
     fn fill(&self, from: usize, ts: &mut [f64]) {
         let m = self.0;
-        let whole = m.is_full_step(from + 1) && m.is_full_step(from + ts.len());
-        if whole && from + ts.len() <= i32::MAX as usize {
-            // as in `March::fill`
-            for (k, t) in ts.iter_mut().enumerate() {
-                *t = m.middle_at_index((from + k) as i32 as f64);
-            }
-        } else if whole {
-            for (k, t) in ts.iter_mut().enumerate() {
-                *t = m.whole_step_middle(from + k);
-            }
+        if m.is_full_step(from + 1) && m.is_full_step(from + ts.len()) {
+            fill_from_indices(from, ts, |x| m.middle_at_index(x));
         } else {
             for (k, t) in ts.iter_mut().enumerate() {
                 *t = self.t(from + k);
