@@ -100,6 +100,7 @@ impl Setup {
                         t_exit,
                         t_depth_ref: t_enter,
                         cut: None,
+                        walk: [t_enter, t_exit],
                     });
                 }
             }

@@ -53,6 +53,7 @@ fn pixel_ray(n: [usize; 3], o: DVec3, d: DVec3) -> Option<PixelRay> {
         t_exit,
         t_depth_ref: t_enter,
         cut: None,
+        walk: [t_enter, t_exit],
     })
 }
 

@@ -7,7 +7,10 @@
 //! view and the pixel, so the image is the same whatever the thread count or the
 //! order in which bands finish.
 
+use std::sync::OnceLock;
+
 use super::clip::{clip_ray, ClipPlane};
+use super::footprint::{Footprint, Windows};
 use super::integrator::{jitter_fraction, Counts, Integrand, PixelRay};
 use super::march::March;
 use super::skip::MacroGrid;
@@ -18,6 +21,12 @@ use crate::scene::Projection;
 
 /// Pixels per side of a tile (and rows per band).
 pub const TILE: usize = 16;
+
+/// Pixels per side of the tiles whose rays share a walk window (`footprint.rs`):
+/// smaller than [`TILE`], for tighter windows (8 took 0.99x the instructions of 16
+/// on the peer composites at 256 x 256, 4 about 0.99x again; see
+/// bench/peers/README.md).
+const WINDOW_TILE: usize = 8;
 
 /// An image of `f32` channels (1 = intensity, 4 = RGBA not premultiplied), row 0
 /// at the top, channels fastest.
@@ -69,6 +78,105 @@ pub struct Kernel<'a, F: Field, I: Integrand> {
     pub jitter: Option<u64>,
     /// The clipping planes that apply to the pass.
     pub clips: &'a [ClipPlane],
+    /// The macrocells the integrand cannot pass over, found when a view first
+    /// needs them (`None` inside: the integrand's answer depends on the ray).
+    footprint: OnceLock<Option<Footprint>>,
+}
+
+impl<'a, F: Field, I: Integrand> Kernel<'a, F, I> {
+    /// The pass of `integrand` over `field`, sampled every `dt` (world units) from a
+    /// first sample jittered by `jitter`'s seed, passing over empty space with
+    /// `grid`, cut by `clips`.
+    pub fn new(
+        field: F,
+        integrand: I,
+        grid: Option<&'a MacroGrid>,
+        dt: f64,
+        jitter: Option<u64>,
+        clips: &'a [ClipPlane],
+    ) -> Self {
+        Kernel {
+            field,
+            integrand,
+            grid,
+            dt,
+            jitter,
+            clips,
+            footprint: OnceLock::new(),
+        }
+    }
+
+    /// Per tile of `view`, the part of the rays a macrocell walk must cover: for
+    /// integrands whose cells are passed over whatever the ray saw
+    /// ([`Integrand::fixed_skippable`]), on passes that skip.
+    fn windows(&self, view: &View, frame: &IndexFrame) -> Option<Windows> {
+        let grid = self.grid?;
+        let footprint = self.footprint.get_or_init(|| {
+            self.integrand.fixed_skippable(0, grid.range(0))?;
+            Some(Footprint::new(grid, |m, range| {
+                self.integrand.fixed_skippable(m, range) == Some(false)
+            }))
+        });
+        Some(footprint.as_ref()?.windows(view, frame, WINDOW_TILE))
+    }
+
+    /// The pixel `(i, j)`, its ray's macrocell walk limited to `window` (the
+    /// whole ray when `None`).
+    #[inline]
+    fn trace_pixel(
+        &self,
+        view: &View,
+        frame: &IndexFrame,
+        i: usize,
+        j: usize,
+        window: Option<[f64; 2]>,
+    ) -> Option<([f32; 4], Counts)> {
+        let ray = view.pixel_ray(i, j);
+        let index = frame.to_index(ray.origin, ray.dir);
+        let t_min = match view.projection {
+            Projection::Perspective => 0.0,
+            Projection::Orthographic => f64::NEG_INFINITY,
+        };
+        let (t_box, t_exit) = frame.clip(&index, t_min)?;
+        // depth is measured from the bounding sphere (or the box), whatever the cut
+        let t_depth_ref = view.depth_reference(&ray).unwrap_or(t_box);
+        let (t_enter, t_exit, cut) = if self.clips.is_empty() {
+            (t_box, t_exit, None)
+        } else {
+            clip_ray(self.clips, ray.origin, ray.dir, (t_box, t_exit))?
+        };
+        let walk = match window {
+            Some([lo, hi]) if t_enter.is_finite() && t_exit.is_finite() => {
+                let (a, b) = (t_enter.max(lo), t_exit.min(hi));
+                if a <= b {
+                    [a, b]
+                } else {
+                    [f64::INFINITY, f64::NEG_INFINITY]
+                }
+            }
+            _ => [t_enter, t_exit],
+        };
+        let pixel_ray = PixelRay {
+            origin: ray.origin,
+            dir: ray.dir,
+            index,
+            t_enter,
+            t_exit,
+            t_depth_ref,
+            cut,
+            walk,
+        };
+        let jitter = self.jitter.map_or(0.0, |seed| {
+            let (e, f) = (view.eye, view.forward);
+            jitter_fraction(seed, [e.x, e.y, e.z, f.x, f.y, f.z], i, j)
+        });
+        let march = March::jittered(t_enter, t_exit, self.dt, jitter);
+        // the grid's ranges hold for this ray's samples (for every ray but those far
+        // from a grid without the margin)
+        let (o, d) = (index.o.to_array(), index.d.to_array());
+        let grid = self.grid.filter(|g| g.bounds(o, d, t_enter, t_exit));
+        Some(self.integrand.trace(&self.field, &pixel_ray, &march, grid))
+    }
 }
 
 /// A pass ready to render views, with its types erased.
@@ -98,6 +206,7 @@ impl<F: Field, I: Integrand> RenderView for Kernel<'_, F, I> {
         let miss = self.integrand.miss();
         let (width, height) = (view.width, view.height);
         let row_len = width * channels;
+        let windows = self.windows(view, frame);
         let band = |band: usize, rows: &mut [f32]| {
             let mut counts = Counts::default();
             let j0 = band * TILE;
@@ -105,8 +214,9 @@ impl<F: Field, I: Integrand> RenderView for Kernel<'_, F, I> {
             for i0 in (0..width).step_by(TILE) {
                 for j in j0..j1 {
                     for i in i0..(i0 + TILE).min(width) {
+                        let window = windows.as_ref().map(|w| w.at(i, j));
                         let (value, c) = self
-                            .pixel(view, frame, i, j)
+                            .trace_pixel(view, frame, i, j, window)
                             .unwrap_or((miss, Counts::default()));
                         let s = (j - j0) * row_len + i * channels;
                         rows[s..s + channels].copy_from_slice(&value[..channels]);
@@ -125,7 +235,6 @@ impl<F: Field, I: Integrand> RenderView for Kernel<'_, F, I> {
         (film, counts)
     }
 
-    #[inline]
     fn pixel(
         &self,
         view: &View,
@@ -133,38 +242,141 @@ impl<F: Field, I: Integrand> RenderView for Kernel<'_, F, I> {
         i: usize,
         j: usize,
     ) -> Option<([f32; 4], Counts)> {
-        let ray = view.pixel_ray(i, j);
-        let index = frame.to_index(ray.origin, ray.dir);
-        let t_min = match view.projection {
-            Projection::Perspective => 0.0,
-            Projection::Orthographic => f64::NEG_INFINITY,
+        self.trace_pixel(view, frame, i, j, None)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::render::footprint::tests::camera;
+    use crate::render::integrator::{Average, Composite, CompositeTable, Xray};
+    use crate::render::skip::Support;
+    use crate::sample::{GradientMethod, Interpolation, Normalize, Sampler};
+    use crate::scene::XrayOutput;
+    use crate::transfer::{Interpolation as Ramp, Transfer1D};
+    use crate::volume::Geometry;
+
+    /// Each pixel of `kernel`'s render of `view` (walks limited to the tiles'
+    /// windows) against its ray walked whole ([`RenderView::pixel`]): the same bits
+    /// and the same samples taken.
+    fn same_as_whole_walks<F: Field, I: Integrand>(
+        kernel: &Kernel<'_, F, I>,
+        view: &View,
+        frame: &IndexFrame,
+    ) -> u64 {
+        let (film, counts) = kernel.render(view, frame);
+        let miss = kernel.integrand.miss();
+        let mut sum = Counts::default();
+        for j in 0..view.height {
+            for i in 0..view.width {
+                let (value, c) = kernel
+                    .pixel(view, frame, i, j)
+                    .unwrap_or((miss, Counts::default()));
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(film.pixel(i, j)),
+                    bits(&value[..film.channels]),
+                    "{view:?}: pixel ({i}, {j})"
+                );
+                sum += c;
+            }
+        }
+        assert_eq!(counts, sum, "{view:?}: samples taken");
+        counts.taken
+    }
+
+    /// Walks limited to the windows of `footprint.rs` give every pixel, and take
+    /// every sample, of the whole walks: X-ray, average and composite passes (with
+    /// and without jitter) over scattered blobs, in orthographic and perspective views (an eye
+    /// inside the volume, an off-axis one), and the windows do narrow the walks.
+    #[test]
+    fn windowed_walks_give_every_pixel_of_the_whole_walks() {
+        let n = [40, 34, 30];
+        let blobs = [
+            ([8.0, 7.0, 6.0], 3.0),
+            ([29.0, 22.0, 12.0], 4.0),
+            ([19.0, 17.0, 15.0], 2.5),
+        ];
+        let mut v = Vec::with_capacity(n[0] * n[1] * n[2]);
+        for k in 0..n[2] {
+            for j in 0..n[1] {
+                for i in 0..n[0] {
+                    let p = DVec3::new(i as f64, j as f64, k as f64);
+                    let f = blobs
+                        .iter()
+                        .map(|&(c, r)| (1.0 - p.distance(DVec3::from_array(c)) / r).max(0.0))
+                        .sum::<f64>();
+                    v.push(f.min(1.0) as f32);
+                }
+            }
+        }
+        let grid = MacroGrid::from_values(n, Support::Linear, |i| v[i]);
+        let octants = MacroGrid::from_values(n, Support::LinearOctants, |i| v[i]);
+        let geometry = Geometry::from_spacing([0.9, 1.2, 1.5]);
+        let m = geometry.index_from_world_matrix().unwrap();
+        let frame = IndexFrame::new(n, None, &geometry, m);
+        let sphere = frame.bounding_sphere(&geometry);
+        let field = Sampler::new(
+            &v,
+            n,
+            Normalize::new(0.0, 1.0),
+            Interpolation::Trilinear,
+            None,
+            GradientMethod::Central,
+            None,
+            m,
+        );
+        let mut views: Vec<View> = [
+            (Projection::Orthographic, 20.0, 15.0),
+            (Projection::Orthographic, 0.0, 90.0),
+            (Projection::Perspective, -35.0, 40.0),
+        ]
+        .iter()
+        .map(|&(p, az, el)| View::new(&camera(p, az, el, 1.3), 0.0, 61, 47, sphere))
+        .collect();
+        views.push(views[2].off_axis(0.1 * sphere.1));
+        let mut inside = views[2];
+        inside.eye = sphere.0;
+        views.push(inside);
+        let xray = Xray {
+            output: XrayOutput::Integral,
+            mu: 1.0,
         };
-        let (t_box, t_exit) = frame.clip(&index, t_min)?;
-        // depth is measured from the bounding sphere (or the box), whatever the cut
-        let t_depth_ref = view.depth_reference(&ray).unwrap_or(t_box);
-        let (t_enter, t_exit, cut) = if self.clips.is_empty() {
-            (t_box, t_exit, None)
-        } else {
-            clip_ray(self.clips, ray.origin, ray.dir, (t_box, t_exit))?
-        };
-        let pixel_ray = PixelRay {
-            origin: ray.origin,
-            dir: ray.dir,
-            index,
-            t_enter,
-            t_exit,
-            t_depth_ref,
-            cut,
-        };
-        let jitter = self.jitter.map_or(0.0, |seed| {
-            let (e, f) = (view.eye, view.forward);
-            jitter_fraction(seed, [e.x, e.y, e.z, f.x, f.y, f.z], i, j)
-        });
-        let march = March::jittered(t_enter, t_exit, self.dt, jitter);
-        // the grid's ranges hold for this ray's samples (for every ray but those far
-        // from a grid without the margin)
-        let (o, d) = (index.o.to_array(), index.d.to_array());
-        let grid = self.grid.filter(|g| g.bounds(o, d, t_enter, t_exit));
-        Some(self.integrand.trace(&self.field, &pixel_ray, &march, grid))
+        let (mut taken, mut nominal) = (0, 0);
+        for jitter in [None, Some(7)] {
+            let dt = 0.37;
+            let alpha = vec![(0.0, 0.0), (0.3, 0.0), (1.0, 0.6)];
+            let tf = Transfer1D::new(vec![(0.0, [1.0; 3])], alpha, Ramp::Linear).unwrap();
+            let table = CompositeTable::OneD(tf.table(256));
+            let mut composite = Composite::new(table, dt, 1.0, None, 0.99, 1.0, None);
+            composite.classify(&octants);
+            let k = Kernel::new(&field, xray, Some(&grid), dt, jitter, &[]);
+            let a = Kernel::new(&field, Average, Some(&grid), dt, jitter, &[]);
+            let c = Kernel::new(&field, composite, Some(&octants), dt, jitter, &[]);
+            for (n, view) in views.iter().enumerate() {
+                taken += same_as_whole_walks(&k, view, &frame);
+                taken += same_as_whole_walks(&a, view, &frame);
+                same_as_whole_walks(&c, view, &frame);
+                assert!(
+                    c.windows(view, &frame).is_some(),
+                    "composite passes have windows"
+                );
+                nominal += 2 * k.render(view, &frame).1.nominal;
+                let w = k.windows(view, &frame).expect("X-ray passes have windows");
+                let empty = (0..view.height)
+                    .flat_map(|j| (0..view.width).map(move |i| (i, j)))
+                    .filter(|&(i, j)| {
+                        let [lo, hi] = w.at(i, j);
+                        lo > hi
+                    })
+                    .count();
+                // (from inside the volume, the cell around the eye covers the image)
+                assert!(n == 4 || empty > 0, "{view:?}: no ray is passed over whole");
+            }
+        }
+        assert!(taken > 0 && taken * 3 < nominal * 2, "{taken} of {nominal}");
     }
 }

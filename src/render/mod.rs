@@ -5,6 +5,7 @@
 //! ```text
 //! pass.rs        RenderPass (planned) --prepare--> dyn RenderView (generic inside)
 //! frame.rs       the loop over a view's pixels, in tiles
+//! footprint.rs   per tile, the part of its rays a macrocell walk must cover
 //! integrator/    one type per mode: what a ray computes; `drive`, the one sampling loop
 //! march.rs       where a ray is sampled
 //! skip.rs        the macrocell grid and its walk (empty-space skipping)
@@ -14,6 +15,7 @@
 
 pub mod camera;
 pub mod clip;
+pub mod footprint;
 pub mod frame;
 pub mod integrator;
 pub mod march;

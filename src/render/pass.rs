@@ -599,14 +599,14 @@ impl RenderPass {
         integrand: I,
         res: &'a Resources<'a>,
     ) -> Kernel<'a, F, I> {
-        Kernel {
+        Kernel::new(
             field,
             integrand,
-            grid: self.needs.grid.and_then(|s| res.grid(s)),
-            dt: self.dt,
-            jitter: self.jitter,
-            clips: &self.clips,
-        }
+            self.needs.grid.and_then(|s| res.grid(s)),
+            self.dt,
+            self.jitter,
+            &self.clips,
+        )
     }
 
     fn with_field<'a, F: Field + 'a>(

@@ -76,6 +76,11 @@ impl IndexFrame {
         geometry.box_bounding_sphere(self.lo, self.hi)
     }
 
+    /// The map from index to world coordinates: `world = origin + matrix * index`.
+    pub fn world_from_index(&self) -> (DVec3, DMat3) {
+        (self.origin, self.index_from_world.inverse())
+    }
+
     /// The index-space form of a world ray.
     pub fn to_index(&self, origin: DVec3, dir: DVec3) -> IndexRay {
         IndexRay {

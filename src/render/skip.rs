@@ -397,6 +397,11 @@ impl MacroGrid {
         self.ranges[m]
     }
 
+    /// Voxels per axis of the grid the macrocells cover.
+    pub fn sizes(&self) -> [usize; 3] {
+        self.n
+    }
+
     /// Number of macrocells.
     pub fn len(&self) -> usize {
         self.ranges.len()

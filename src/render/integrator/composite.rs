@@ -230,6 +230,13 @@ impl Composite {
         };
     }
 
+    /// Whether the transfer function is transparent over macrocell `cell` (false
+    /// before [`Composite::classify`]).
+    #[inline(always)]
+    fn transparent_cell(&self, cell: usize) -> bool {
+        self.transparent.get(cell).copied().unwrap_or(false)
+    }
+
     /// Whether the transfer function is transparent over octant `octant` of
     /// macrocell `cell` (false for a grid without octants).
     #[inline(always)]
@@ -296,6 +303,12 @@ impl Composite {
 impl Integrand for Composite {
     fn channels(&self) -> usize {
         4
+    }
+
+    /// Cells over which the transfer function is transparent, as both ways of
+    /// compositing pass over them.
+    fn fixed_skippable(&self, cell: usize, _range: [f32; 2]) -> Option<bool> {
+        Some(self.transparent_cell(cell))
     }
 
     fn trace<F: Field>(
@@ -375,7 +388,7 @@ struct Midpoint<'a, F: Field, T> {
 impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     #[inline(always)]
     fn skippable(&self, cell: usize, _range: [f32; 2]) -> bool {
-        self.pass.transparent.get(cell).copied().unwrap_or(false)
+        self.pass.transparent_cell(cell)
     }
 
     #[inline(always)]
@@ -491,7 +504,7 @@ impl<F: Field> Segments<'_, F> {
 impl<F: Field> Consumer for Segments<'_, F> {
     #[inline(always)]
     fn skippable(&self, cell: usize, _range: [f32; 2]) -> bool {
-        self.pass.transparent.get(cell).copied().unwrap_or(false)
+        self.pass.transparent_cell(cell)
     }
 
     #[inline(always)]

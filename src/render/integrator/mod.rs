@@ -66,6 +66,13 @@ pub struct PixelRay {
     /// The clipping plane the ray enters through, when a plane (not the box) sets
     /// `t_enter`.
     pub cut: Option<Cut>,
+    /// The part of `[t_enter, t_exit]` a walk through the macrocells must cover:
+    /// outside it, the pass passes over every macrocell whatever the ray has seen
+    /// ([`Integrand::fixed_skippable`], `footprint.rs`). The whole interval unless
+    /// the view found a narrower one; empty (start above end) when nothing on the
+    /// ray can matter. The walk's ends lie in cells passed over, so the samples the
+    /// integrand is handed are those of the whole walk.
+    pub walk: [f64; 2],
 }
 
 impl PixelRay {
@@ -88,6 +95,16 @@ pub trait Integrand: Sync {
         } else {
             [f32::NAN, 0.0, 0.0, 0.0]
         }
+    }
+
+    /// Whether every ray passes over macrocell `cell`, whose values lie in `range`,
+    /// whatever it has seen before: `Some` for integrands whose consumers answer
+    /// [`Consumer::skippable`] from the cell alone (and then with this answer),
+    /// `None` (the default) where the answer depends on the ray, as a running
+    /// maximum's does. With `Some`, a view's rays walk only the part where a cell
+    /// that is not passed over can lie ([`PixelRay::walk`]).
+    fn fixed_skippable(&self, _cell: usize, _range: [f32; 2]) -> Option<bool> {
+        None
     }
 
     /// Integrates one ray sampled at `march` (exact integrands ignore it), passing
@@ -178,8 +195,18 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
         let _ = runs.take(0, n, consumer);
         return runs.taken;
     };
+    let [w0, w1] = ray.walk;
+    if w0 > w1 {
+        // every cell on the ray is passed over (as the last span of a whole walk
+        // would pass over the samples)
+        let n = lattice.len();
+        if n > 0 {
+            let _ = consumer.skip(0, n);
+        }
+        return 0;
+    }
     let mut pieces = [Piece::default(); 4];
-    let mut walk = grid.walk(&ray.index, ray.t_enter, ray.t_exit);
+    let mut walk = grid.walk(&ray.index, w0, w1);
     while let Some(span) = walk.next() {
         let (cell, range) = (span.cell, grid.range(span.cell));
         // a cell that cannot be passed over whole, but some of whose octants can
@@ -449,6 +476,7 @@ pub(super) mod testing {
             t_exit,
             t_depth_ref: 0.0,
             cut: None,
+            walk: [0.0, t_exit],
         }
     }
 }

@@ -401,6 +401,11 @@ impl Integrand for Average {
         1
     }
 
+    /// All-zero cells, as the trapezoid passes over them.
+    fn fixed_skippable(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
+        Some(super::xray::skippable(range))
+    }
+
     /// The trapezoid integral over the length; a ray of zero length (grazing a
     /// corner) gets its one sample.
     #[inline]

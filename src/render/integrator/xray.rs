@@ -29,6 +29,11 @@ impl Integrand for Xray {
         [finish(0.0, self.output, 1.0), 0.0, 0.0, 0.0]
     }
 
+    /// All-zero cells, as [`Trapezoid`] passes over them.
+    fn fixed_skippable(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
+        Some(skippable(range))
+    }
+
     #[inline]
     fn trace<F: Field>(
         &self,
@@ -48,6 +53,13 @@ impl Integrand for Xray {
             counts,
         )
     }
+}
+
+/// Whether the trapezoid passes over a macrocell of values in `range`: values are
+/// normalised to [0, 1], so a maximum of zero is all zeros.
+#[inline(always)]
+pub(super) fn skippable(range: [f32; 2]) -> bool {
+    range[1] <= 0.0
 }
 
 /// The trapezoid-rule integral of the samples, accumulated in f64, and the value of
@@ -112,8 +124,7 @@ impl<'a> Trapezoid<'a> {
 impl Consumer for Trapezoid<'_> {
     #[inline(always)]
     fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
-        // values are normalised to [0, 1]: a maximum of zero is all zeros
-        range[1] <= 0.0
+        skippable(range)
     }
 
     #[inline(always)]
