@@ -22,6 +22,7 @@ use std::ops::Range;
 
 use crate::error::Error;
 use crate::output::Eye;
+use crate::render::footprint::Footprint;
 use crate::render::pass::GridSource;
 use crate::render::{ImageKind, IndexFrame, RenderPass};
 use crate::scene::{Format, Layout, LightKindSpec, MipOutput, Mode, OrbitPath, Scene, Units};
@@ -264,7 +265,19 @@ impl Plan {
         grids.sort();
         grids.dedup();
         let lut_bytes = header.scalar_type.lut_size() as u64 * 4;
-        let table_bytes: u64 = passes.iter().map(|p| p.table_bytes(header.sizes)).sum();
+        let threads = opts
+            .threads
+            .unwrap_or_else(rayon::current_num_threads)
+            .max(1);
+        // the macrocells a skipping pass cannot pass over, as boxes, and per view
+        // being rendered the windows of its tiles' rays (render/footprint.rs)
+        let footprint_bytes = passes.iter().filter(|p| p.needs().grid.is_some()).count() as u64
+            * Footprint::max_bytes(header.sizes, width, height, threads);
+        let table_bytes: u64 = passes
+            .iter()
+            .map(|p| p.table_bytes(header.sizes))
+            .sum::<u64>()
+            .saturating_add(footprint_bytes);
         let precomputed_bytes = voxels
             .saturating_mul(12 * gradient_methods.len() as u64 + if cubic { 4 } else { 0 })
             .saturating_add(
@@ -284,10 +297,6 @@ impl Plan {
         } else {
             0
         };
-        let threads = opts
-            .threads
-            .unwrap_or_else(rayon::current_num_threads)
-            .max(1);
         let channels_max = passes.iter().map(|p| p.channels()).max().unwrap_or(1);
         // Views kept for one batch of frames (plus those a reused toe-in eye keeps
         // for later frames), and display copies for the images being encoded.
@@ -377,7 +386,7 @@ impl Plan {
         .saturating_add(lut_bytes);
         if small > 0 {
             memory.push((
-                "macrocell grids, transfer-function and lookup tables".into(),
+                "macrocell grids and their footprints, transfer-function and lookup tables".into(),
                 small,
             ));
         }

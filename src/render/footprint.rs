@@ -25,6 +25,12 @@ use super::ray::IndexFrame;
 use super::skip::{MacroGrid, MACROCELL};
 use crate::scene::Projection;
 
+/// Pixels per side of the tiles whose rays share a window: smaller than the
+/// render's tiles (`frame::TILE`), for tighter windows (8 took 0.99x the
+/// instructions of 16 on the peer composites at 256 x 256, 4 about 0.99x again;
+/// bench/peers/README.md, tenth round).
+pub const WINDOW_TILE: usize = 8;
+
 /// Boxes projected per view at most: beyond this many macrocells, neighbouring
 /// cells are merged into blocks (a box per block holding one that matters).
 const MAX_BOXES: usize = 1 << 16;
@@ -40,7 +46,8 @@ pub struct Footprint {
 /// (empty, start above end, where none can).
 #[derive(Clone, Debug)]
 pub struct Windows {
-    tile: usize,
+    /// log2 of the tiles' side in pixels.
+    shift: u32,
     tiles_x: usize,
     spans: Vec<[f64; 2]>,
 }
@@ -49,11 +56,23 @@ impl Windows {
     /// The interval for pixel `(i, j)`'s tile.
     #[inline]
     pub fn at(&self, i: usize, j: usize) -> [f64; 2] {
-        self.spans[(j / self.tile) * self.tiles_x + i / self.tile]
+        self.spans[(j >> self.shift) * self.tiles_x + (i >> self.shift)]
     }
 }
 
 impl Footprint {
+    /// Bytes a pass's footprint over a grid of `n` voxels takes at most, with the
+    /// windows of `views` renders of `width x height` pixels in flight.
+    pub fn max_bytes(n: [usize; 3], width: usize, height: usize, views: usize) -> u64 {
+        let cells = MacroGrid::dims(n)
+            .iter()
+            .fold(1u64, |a, &d| a.saturating_mul(d as u64));
+        // a box and a flag per block, at most MAX_BOXES of them
+        let boxes = cells.min(MAX_BOXES as u64) * (std::mem::size_of::<[DVec3; 2]>() as u64 + 1);
+        let tiles = (width.div_ceil(WINDOW_TILE) * height.div_ceil(WINDOW_TILE)) as u64;
+        boxes.saturating_add((views as u64).saturating_mul(tiles * 16))
+    }
+
     /// The boxes of the macrocells of `grid` for which `matters(cell, range)` is
     /// true. A cell's box is the region the walk assigns to it: `MACROCELL` voxels
     /// per axis, the cells at the grid's faces reaching beyond the sampled box.
@@ -123,10 +142,11 @@ impl Footprint {
         self.boxes.is_empty()
     }
 
-    /// Per tile of `tile` x `tile` pixels of `view`, the interval of `t` (world
-    /// units, as [`View::ray`]'s rays) outside which no ray of the tile meets a box,
-    /// widened by a voxel.
+    /// Per tile of `tile` x `tile` pixels of `view` (a power of two), the interval
+    /// of `t` (world units, as [`View::ray`]'s rays) outside which no ray of the tile
+    /// meets a box, widened by a voxel.
     pub fn windows(&self, view: &View, frame: &IndexFrame, tile: usize) -> Windows {
+        assert!(tile.is_power_of_two(), "tiles of a power of two pixels");
         let (origin, m) = frame.world_from_index();
         // a voxel's diagonal, at most, in world units
         let margin = m.x_axis.length() + m.y_axis.length() + m.z_axis.length();
@@ -223,7 +243,7 @@ impl Footprint {
             }
         }
         Windows {
-            tile,
+            shift: tile.trailing_zeros(),
             tiles_x,
             spans,
         }

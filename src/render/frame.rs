@@ -10,7 +10,7 @@
 use std::sync::OnceLock;
 
 use super::clip::{clip_ray, ClipPlane};
-use super::footprint::{Footprint, Windows};
+use super::footprint::{Footprint, Windows, WINDOW_TILE};
 use super::integrator::{jitter_fraction, Counts, Integrand, PixelRay};
 use super::march::March;
 use super::skip::MacroGrid;
@@ -21,12 +21,6 @@ use crate::scene::Projection;
 
 /// Pixels per side of a tile (and rows per band).
 pub const TILE: usize = 16;
-
-/// Pixels per side of the tiles whose rays share a walk window (`footprint.rs`):
-/// smaller than [`TILE`], for tighter windows (8 took 0.99x the instructions of 16
-/// on the peer composites at 256 x 256, 4 about 0.99x again; see
-/// bench/peers/README.md).
-const WINDOW_TILE: usize = 8;
 
 /// An image of `f32` channels (1 = intensity, 4 = RGBA not premultiplied), row 0
 /// at the top, channels fastest.
@@ -122,7 +116,7 @@ impl<'a, F: Field, I: Integrand> Kernel<'a, F, I> {
 
     /// The pixel `(i, j)`, its ray's macrocell walk limited to `window` (the
     /// whole ray when `None`).
-    #[inline]
+    #[inline(always)]
     fn trace_pixel(
         &self,
         view: &View,
