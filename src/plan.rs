@@ -269,8 +269,9 @@ impl Plan {
             .threads
             .unwrap_or_else(rayon::current_num_threads)
             .max(1);
-        // the macrocells a skipping pass cannot pass over, as boxes, and per view
-        // being rendered the windows of its tiles' rays (render/footprint.rs)
+        // at most: the macrocells a skipping pass cannot pass over, as boxes, and per
+        // view being rendered the windows of its tiles' rays (render/footprint.rs;
+        // only the passes whose skipping is fixed build them)
         let footprint_bytes = passes.iter().filter(|p| p.needs().grid.is_some()).count() as u64
             * Footprint::max_bytes(header.sizes, width, height, threads);
         let table_bytes: u64 = passes

@@ -37,7 +37,7 @@ const MAX_BOXES: usize = 1 << 16;
 
 /// The index-space boxes of the macrocells (or blocks of them) a pass cannot pass
 /// over.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Footprint {
     boxes: Vec<[DVec3; 2]>,
 }
@@ -117,11 +117,10 @@ impl Footprint {
                     if !hit[bx + blocks[0] * (by + blocks[1] * bz)] {
                         continue;
                     }
-                    let r = [bx, by, bz]
-                        .iter()
-                        .enumerate()
-                        .map(|(a, &k)| region(a, k * b, ((k + 1) * b - 1).min(dims[a] - 1)))
-                        .collect::<Vec<_>>();
+                    let k = [bx, by, bz];
+                    let r: [[f64; 2]; 3] = std::array::from_fn(|a| {
+                        region(a, k[a] * b, ((k[a] + 1) * b - 1).min(dims[a] - 1))
+                    });
                     boxes.push([
                         DVec3::new(r[0][0], r[1][0], r[2][0]),
                         DVec3::new(r[0][1], r[1][1], r[2][1]),
@@ -130,16 +129,6 @@ impl Footprint {
             }
         }
         Footprint { boxes }
-    }
-
-    /// The number of boxes.
-    pub fn len(&self) -> usize {
-        self.boxes.len()
-    }
-
-    /// True when no macrocell matters.
-    pub fn is_empty(&self) -> bool {
-        self.boxes.is_empty()
     }
 
     /// Per tile of `tile` x `tile` pixels of `view` (a power of two), the interval
@@ -357,11 +346,8 @@ pub(crate) mod tests {
         };
         let grid = MacroGrid::from_values(n, Support::Linear, value);
         let fp = Footprint::new(&grid, |_, r| r[1] > 0.0);
-        assert!(
-            fp.len() >= lit.len() && fp.len() < grid.len() / 4,
-            "{}",
-            fp.len()
-        );
+        let boxes = fp.boxes.len();
+        assert!(boxes >= lit.len() && boxes < grid.len() / 4, "{boxes}");
         let (mut checked, mut empty, mut tiles) = (0usize, 0usize, 0usize);
         for geometry in geometries() {
             let m = geometry.index_from_world_matrix().unwrap();

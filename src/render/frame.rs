@@ -106,6 +106,7 @@ impl<'a, F: Field, I: Integrand> Kernel<'a, F, I> {
     fn windows(&self, view: &View, frame: &IndexFrame) -> Option<Windows> {
         let grid = self.grid?;
         let footprint = self.footprint.get_or_init(|| {
+            // an integrand answers `None` for every cell or for none
             self.integrand.fixed_skippable(0, grid.range(0))?;
             Some(Footprint::new(grid, |m, range| {
                 self.integrand.fixed_skippable(m, range) == Some(false)
