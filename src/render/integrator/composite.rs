@@ -587,10 +587,14 @@ fn shaded<F: Field>(
 }
 
 /// Front-to-back accumulation (REFERENCE.md: `C' += (1 - A') C_i`, `A' += (1 - A') A_i`)
-/// in f64, with early ray termination.
+/// in f64, with early ray termination. The transmittance `1 - A'` is carried as a
+/// product of its own, so that one sample waits on the one before it for a single
+/// multiplication (not a subtraction, a multiplication and an addition).
 struct FrontToBack {
     color: DVec3,
     alpha: f64,
+    /// `1 - alpha`, as the product of the samples' `1 - a`.
+    transmit: f64,
     early_stop: f64,
 }
 
@@ -599,6 +603,7 @@ impl FrontToBack {
         FrontToBack {
             color: DVec3::ZERO,
             alpha: 0.0,
+            transmit: 1.0,
             early_stop: f64::from(early_stop),
         }
     }
@@ -607,7 +612,9 @@ impl FrontToBack {
     /// once the ray may stop.
     #[inline(always)]
     fn add(&mut self, c: Vec4, a: f32) -> ControlFlow<()> {
-        let w = (1.0 - self.alpha) * f64::from(a);
+        let a = f64::from(a);
+        let w = self.transmit * a;
+        self.transmit *= 1.0 - a;
         self.color += c.truncate().as_dvec3() * w;
         self.alpha += w;
         if self.alpha >= self.early_stop {
