@@ -70,11 +70,11 @@ impl<T: Voxel> Grid<'_, T> {
             );
             let sample = match kind {
                 Gather::Float32 => {
-                    let c = each_row!(self.row_f32_x8::<false>, _mm512_add_epi64, base, rows);
+                    let c = self.rows_f32_x8::<false>(base, c.rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Float32Unit => {
-                    let c = each_row!(self.row_f32_x8::<true>, _mm512_add_epi64, base, rows);
+                    let c = self.rows_f32_x8::<true>(base, c.rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits16 => {
@@ -92,16 +92,45 @@ impl<T: Voxel> Grid<'_, T> {
         self.trilinear_avx2(o, d, &ts[rest..], &mut out[rest..]);
     }
 
-    /// The normalised float32 voxels at flat indices `at` and `at + 1` of each of
-    /// eight lanes; `UNIT` for the window [0, 1] ([`Gather::Float32Unit`]).
+    /// The normalised float32 voxels of the four rows of each of eight lanes'
+    /// cells: row `r` of the lane whose cell starts at flat index `base` holds
+    /// voxels `base + rows[r]` and the one after it. The lanes' cell starts are
+    /// read out once, and each row's voxels through a pointer to that row's
+    /// offset (one load per lane and row, the offset in the address).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
-    unsafe fn row_f32_x8<const UNIT: bool>(&self, at: __m512i) -> (__m256, __m256) {
-        // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
-        // voxel; each lane reads the two adjacent float32 as one 64-bit word
-        let at: [i64; 8] = std::mem::transmute(at);
-        let w = |k: usize| f32_pair(self.voxels.as_ptr().cast(), at[k]);
-        let pairs = _mm512_set_epi64(w(7), w(6), w(5), w(4), w(3), w(2), w(1), w(0));
+    unsafe fn rows_f32_x8<const UNIT: bool>(
+        &self,
+        base: __m512i,
+        rows: [i64; 4],
+    ) -> [(__m256, __m256); 4] {
+        let base: [i64; 8] = std::mem::transmute(base);
+        let data: *const f32 = self.voxels.as_ptr().cast();
+        // SAFETY (the caller's): every `base + rows[r]` is a cell's row start, so
+        // it and the voxel after it are in the data
+        let row = |r: usize| {
+            let p = data.offset(rows[r] as isize);
+            let w = |k: usize| f32_pair(p, base[k]);
+            self.row_f32_x8::<UNIT>(_mm512_set_epi64(
+                w(7),
+                w(6),
+                w(5),
+                w(4),
+                w(3),
+                w(2),
+                w(1),
+                w(0),
+            ))
+        };
+        [row(0), row(1), row(2), row(3)]
+    }
+
+    /// The normalised float32 voxels of eight lanes from `pairs`, each lane two
+    /// adjacent voxels as one 64-bit word (the first in the low half); `UNIT` for
+    /// the window [0, 1] ([`Gather::Float32Unit`]).
+    #[target_feature(enable = "avx2,avx512f")]
+    #[inline]
+    unsafe fn row_f32_x8<const UNIT: bool>(&self, pairs: __m512i) -> (__m256, __m256) {
         // the low and high halves of each 64-bit element: voxels `at` and `at + 1`
         let a = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(pairs));
         let b = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(_mm512_srli_epi64::<32>(pairs)));
