@@ -9,7 +9,9 @@ use volcast::render::integrator::{trace, Integrand, Mip, PixelRay, Xray};
 use volcast::render::march::March;
 use volcast::render::skip::{MacroGrid, Support};
 use volcast::render::IndexFrame;
-use volcast::sample::{bits_table, Field, GradientMethod, Gradients, Grid, Normalize, Trilinear};
+use volcast::sample::{
+    bits_table, CellCache, Field, GradientMethod, Gradients, Grid, Normalize, Trilinear,
+};
 use volcast::scene::XrayOutput;
 use volcast::volume::{Geometry, ScalarType, Voxels};
 
@@ -123,6 +125,28 @@ fn trilinear_sample_u8(b: Bencher) {
                 acc += f.value(black_box(ray.index.at(m.t(i))));
             }
             acc
+        });
+}
+
+/// Trilinear samples of 8-bit voxels along one ray, handed over in calls of `run`
+/// samples (`Field::values_along`, the vector path where the machine has one): the
+/// cost of a call against its samples, as the renderers' runs (a macrocell's span,
+/// a batch of 64) make them. Items: samples.
+#[divan::bench(args = [8, 16, 64])]
+fn values_along_u8(b: Bencher, run: usize) {
+    let s = Setup::new();
+    let f = s.field();
+    let ray = s.rays(7)[24];
+    let m = March::new(ray.t_enter, ray.t_exit, 0.5);
+    let ts: Vec<f64> = (0..m.len()).map(|i| m.t(i)).collect();
+    let mut out = vec![0.0f32; ts.len()];
+    let mut cache = CellCache::default();
+    b.counter(divan::counter::ItemsCount::new(ts.len()))
+        .bench_local(|| {
+            for (t, o) in ts.chunks(run).zip(out.chunks_mut(run)) {
+                f.values_along(ray.index.o, ray.index.d, black_box(t), o, &mut cache);
+            }
+            black_box(&out);
         });
 }
 
