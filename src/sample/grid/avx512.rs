@@ -70,12 +70,12 @@ impl<T: Voxel> Grid<'_, T> {
             );
             let sample = match kind {
                 Gather::Float32 => {
-                    let c = self.rows_f32_x8::<false>(base, c.rows);
-                    interpolate(c, fx, fy, fz)
+                    let corners = self.rows_f32_x8::<false>(base, c.rows);
+                    interpolate(corners, fx, fy, fz)
                 }
                 Gather::Float32Unit => {
-                    let c = self.rows_f32_x8::<true>(base, c.rows);
-                    interpolate(c, fx, fy, fz)
+                    let corners = self.rows_f32_x8::<true>(base, c.rows);
+                    interpolate(corners, fx, fy, fz)
                 }
                 Gather::Bits16 => {
                     let c = each_row!(self.row_bits_x8::<2>, _mm512_add_epi64, base, rows);
