@@ -215,3 +215,65 @@ fn depth_cued_mip_skips_without_changing_a_pixel() {
         0.2,
     );
 }
+
+/// float32 voxels that all lie in the window [0, 1] are sampled without their clamp
+/// (the renderer checks them once per run), with the bits of clamped ones. One voxel
+/// of the blobs' air is set to 3.0, outside the window, which makes the renderer
+/// clamp every voxel, and to 1.0, which does not: the two images are the same bits,
+/// and differ from the blobs' own where the odd voxel is seen.
+#[test]
+fn float_voxels_inside_the_window_read_unclamped_give_the_clamped_bits() {
+    let n = 33;
+    let dir = tempfile::tempdir().unwrap();
+    let blobs: Vec<f32> = blobs(n).iter().map(|&x| x as f32).collect();
+    // a corner voxel, in the air
+    assert_eq!(blobs[0], 0.0);
+    let with = |v: f32| {
+        let mut d = blobs.clone();
+        d[0] = v;
+        d
+    };
+    let mut films = Vec::new();
+    for (name, data) in [
+        ("blobs", blobs.clone()),
+        ("three", with(3.0)),
+        ("one", with(1.0)),
+    ] {
+        let h = NrrdHeader::new(ScalarType::Float32, vec![n, n, n]);
+        let p = dir.path().join(format!("{name}.nrrd"));
+        let bytes = nrrd::encode(&h, &VolumeData::F32(data)).expect("encodes");
+        std::fs::write(&p, bytes).expect("writes");
+        let scene = format!(
+            "[volume]\npath = {:?}\nwindow = [0.0, 1.0]\n\
+             [camera]\nprojection = \"orthographic\"\nazimuth = 20\nelevation = 15\n\
+             [image]\nsize = [48, 40]\nformat = \"nrrd\"\n\
+             [[render]]\nname = \"x\"\nmode = \"xray\"\nstep = 0.5\n\
+             [[render]]\nname = \"m\"\nmode = \"mip\"\nstep = 0.5\n\
+             [[render]]\nname = \"c\"\nmode = \"composite\"\ntransfer = \"ramp\"\n\
+             [transfer.ramp]\ncolor = [[0.0, [1.0, 1.0, 1.0]], [1.0, [1.0, 0.5, 0.2]]]\n\
+             alpha = [[0.0, 0.0], [0.1, 0.0], [1.0, 0.8]]\n",
+            p.to_str().unwrap()
+        );
+        films.push(render(&scene, dir.path(), false).0);
+    }
+    // the values whose bits differ between two images
+    let differ = |a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .filter(|(x, y)| x.to_bits() != y.to_bits())
+            .count()
+    };
+    for ((plain, three), one) in films[0].iter().zip(&films[1]).zip(&films[2]) {
+        let pass = plain.pass;
+        let (plain, three, one) = (&plain.film.data, &three.film.data, &one.film.data);
+        assert_eq!(
+            differ(three, one),
+            0,
+            "pass {pass}: 3.0 clamped and 1.0 read as it is give other values"
+        );
+        assert!(
+            differ(plain, one) > 0,
+            "pass {pass}: the odd voxel is not seen"
+        );
+    }
+}

@@ -15,6 +15,8 @@
 //! samples; everything above sees a `dyn RenderView`. Adding a mode, a filter, a
 //! skipping structure or another way to traverse the volume has this one place.
 
+use std::sync::OnceLock;
+
 use glam::DMat3;
 
 use super::clip::ClipPlane;
@@ -539,6 +541,7 @@ impl RenderPass {
         let grid = Grid::new(voxels, res.sizes, res.norm, &res.lut);
         match self.scalar_type {
             ScalarType::Int8 | ScalarType::Int16 => grid.signed_bits(),
+            ScalarType::Float32 if res.unit_voxels() => grid.with_unit_voxels(),
             _ => grid,
         }
     }
@@ -674,6 +677,9 @@ pub struct Resources<'v> {
     gradients: Vec<(GradientMethod, Vec<[f32; 3]>)>,
     grids: Vec<(GridSource, MacroGrid)>,
     index_from_world: DMat3,
+    /// Whether the voxels are float32 in the window [0, 1] and each in [0, 1]
+    /// (found when a pass first asks: [`Resources::unit_voxels`]).
+    unit_voxels: OnceLock<bool>,
 }
 
 impl<'v> Resources<'v> {
@@ -816,6 +822,22 @@ fn build_typed<'v, T: Voxel>(
         gradients,
         grids,
         index_from_world,
+        unit_voxels: OnceLock::new(),
+    }
+}
+
+impl Resources<'_> {
+    /// Whether the voxels are float32, the window is [0, 1] and every voxel lies in
+    /// it: then sampling need not clamp them ([`Grid::with_unit_voxels`]). Read
+    /// once (a pass over the voxels, in parallel), when a pass first asks.
+    fn unit_voxels(&self) -> bool {
+        *self.unit_voxels.get_or_init(|| {
+            self.norm.lo_scale() == (0.0, 1.0)
+                && self
+                    .data
+                    .voxels::<f32>()
+                    .is_some_and(|v| v.all_in_unit_interval())
+        })
     }
 }
 

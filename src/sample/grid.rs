@@ -160,6 +160,24 @@ impl<'a, T: Voxel> Grid<'a, T> {
         }
     }
 
+    /// The grid, told that every voxel lies in [0, 1] (no NaN) while the window is
+    /// [0, 1]: normalising each voxel is then the identity, and the vector paths
+    /// read float32 voxels as they are ([`avx2::Gather::Float32Bare`]), with the
+    /// same bits as when they clamp them. A grid of another type or window is
+    /// returned unchanged. The caller checks the voxels
+    /// ([`Voxels::all_in_unit_interval`](crate::volume::Voxels::all_in_unit_interval)):
+    /// a voxel outside [0, 1] would then be sampled unclamped.
+    pub fn with_unit_voxels(self) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if self.gather == Some(avx2::Gather::Float32Unit) {
+            return Grid {
+                gather: Some(avx2::Gather::Float32Bare),
+                ..self
+            };
+        }
+        self
+    }
+
     /// The grid of signed 8- or 16-bit data read as the unsigned bits `T` (whose
     /// normalisation table, [`bits_table`], is indexed by bits).
     pub fn signed_bits(self) -> Self {

@@ -221,6 +221,22 @@ impl_voxel!(u64, ScalarType::Uint64, f64::round);
 impl_voxel!(f32, ScalarType::Float32, |v| v);
 impl_voxel!(f64, ScalarType::Float64, |v| v);
 
+impl Voxels<'_, f32> {
+    /// Whether every voxel lies in [0, 1] (NaN does not): read in parallel, once
+    /// per run for a float32 volume whose window is [0, 1], so that sampling can
+    /// skip the clamp of each voxel ([`Grid::with_unit_voxels`](crate::sample::Grid::with_unit_voxels)).
+    pub fn all_in_unit_interval(&self) -> bool {
+        use rayon::prelude::*;
+        // whole voxels per chunk: a multiple of 4 bytes
+        self.bytes.par_chunks(1 << 20).all(|chunk| {
+            chunk.chunks_exact(4).all(|b| {
+                let v = f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
+                (0.0..=1.0).contains(&v)
+            })
+        })
+    }
+}
+
 /// A read-only view of voxels of type `T` in native byte order, x fastest: the
 /// storage the renderer samples. The bytes may sit at any address (a memory-mapped
 /// file's data starts wherever its header ends), so elements are read with
@@ -688,6 +704,32 @@ impl PartialEq for VolumeData {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn unit_interval_check_takes_both_zeros_and_ends_and_refuses_the_rest() {
+        // long enough for several chunks, the odd voxel last
+        let mut v = vec![0.5f32; 700_000];
+        v[1] = -0.0;
+        v[2] = 1.0;
+        v[3] = 0.0;
+        assert!(Voxels::from_slice(&v).all_in_unit_interval());
+        for bad in [
+            f32::NAN,
+            -f32::from_bits(1),
+            1.0 + f32::EPSILON,
+            f32::INFINITY,
+            -1.0,
+        ] {
+            let last = v.len() - 1;
+            v[last] = bad;
+            assert!(!Voxels::from_slice(&v).all_in_unit_interval(), "{bad}");
+        }
+        // at an address that is not a multiple of 4
+        let bytes: Vec<u8> = std::iter::once(0u8)
+            .chain([0.25f32, 1.0, 0.0].iter().flat_map(|x| x.to_ne_bytes()))
+            .collect();
+        assert!(Voxels::<f32>::from_bytes(&bytes[1..]).all_in_unit_interval());
+    }
     use super::*;
 
     #[test]

@@ -21,6 +21,13 @@ pub(super) enum Gather {
     /// lanes, the same bits (`(v - 0) * 1` is `v`, and the clamped value converts
     /// to f64 and back exactly).
     Float32Unit,
+    /// float32 voxels in the window [0, 1], every one of them in [0, 1] (checked by
+    /// the caller of [`Grid::with_unit_voxels`](super::Grid::with_unit_voxels)):
+    /// normalising is the identity, so they are read as they are. The same bits as
+    /// [`Gather::Float32Unit`]: the clamp changes only -0 into +0, and an
+    /// interpolation `a + (b - a) t` of corners that are zeros of either sign gives
+    /// the same bits either way.
+    Float32Bare,
     /// 8-bit voxels read as `u8` bits, normalised by the table.
     Bits8,
     /// 16-bit voxels read as `u16` bits, normalised by the table.
@@ -60,6 +67,13 @@ impl Gather {
         (fits && std::is_x86_feature_detected!("avx2")).then_some(kind)
     }
 }
+
+/// How the float32 paths normalise a row's voxels (their const parameter): in f64
+/// lanes ([`Gather::Float32`]), by clamping ([`Gather::Float32Unit`]), or not at all
+/// ([`Gather::Float32Bare`]).
+pub(super) const ROW_GENERAL: u8 = 0;
+pub(super) const ROW_UNIT: u8 = 1;
+pub(super) const ROW_BARE: u8 = 2;
 
 /// What the vector paths broadcast into their lanes for one call.
 pub(super) struct LaneConstants {
@@ -130,11 +144,15 @@ impl<T: Voxel> Grid<'_, T> {
             );
             let sample = match kind {
                 Gather::Float32 => {
-                    let c = each_row!(self.row_f32::<false>, _mm256_add_epi64, base, rows);
+                    let c = each_row!(self.row_f32::<ROW_GENERAL>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Float32Unit => {
-                    let c = each_row!(self.row_f32::<true>, _mm256_add_epi64, base, rows);
+                    let c = each_row!(self.row_f32::<ROW_UNIT>, _mm256_add_epi64, base, rows);
+                    interpolate(c, fx, fy, fz)
+                }
+                Gather::Float32Bare => {
+                    let c = each_row!(self.row_f32::<ROW_BARE>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits16 => {
@@ -155,11 +173,11 @@ impl<T: Voxel> Grid<'_, T> {
     }
 
     /// The normalised float32 voxels at flat indices `at` and `at + 1` of each lane:
-    /// (voxel `at` of lanes 0..4, voxel `at + 1` of lanes 0..4); `UNIT` for the
-    /// window [0, 1] ([`Gather::Float32Unit`]).
+    /// (voxel `at` of lanes 0..4, voxel `at + 1` of lanes 0..4), normalised as
+    /// `KIND` says ([`ROW_GENERAL`], [`ROW_UNIT`], [`ROW_BARE`]).
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn row_f32<const UNIT: bool>(&self, at: __m256i) -> (__m128, __m128) {
+    unsafe fn row_f32<const KIND: u8>(&self, at: __m256i) -> (__m128, __m128) {
         // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
         // voxel; each lane reads the two adjacent float32 as one 64-bit word
         let at: [i64; 4] = std::mem::transmute(at);
@@ -169,7 +187,10 @@ impl<T: Voxel> Grid<'_, T> {
         let hi = _mm256_extractf128_ps::<1>(pairs); // a2 b2 a3 b3
         let a = _mm_shuffle_ps::<0b10_00_10_00>(lo, hi);
         let b = _mm_shuffle_ps::<0b11_01_11_01>(lo, hi);
-        if UNIT {
+        if KIND == ROW_BARE {
+            return (a, b);
+        }
+        if KIND == ROW_UNIT {
             // max with 0 (NaN -> 0, -0 -> 0), min with 1, as below
             let (zero, one) = (_mm_setzero_ps(), _mm_set1_ps(1.0));
             let clamp = |v: __m128| _mm_min_ps(_mm_max_ps(v, zero), one);
@@ -306,10 +327,12 @@ mod tests {
     /// out-of-window voxels, on grids whose last row ends the data) taken four (AVX2)
     /// or eight (AVX-512) at a time have the bits of one sample at a time, for each
     /// voxel type the vector paths read.
+    /// `bare`: the grid is told its voxels lie in [0, 1] ([`Grid::with_unit_voxels`]).
     fn along_is_one_at_a_time<T: Voxel>(
         voxel: impl Fn(usize) -> T,
         norm: Normalize,
         expect: Option<Gather>,
+        bare: bool,
     ) {
         // calls of the AVX2 and of the AVX-512 path (0 where the machine lacks one)
         let mut paths = [0usize; 2];
@@ -317,7 +340,10 @@ mod tests {
             let len = n[0] * n[1] * n[2];
             let v: Vec<T> = (0..len).map(&voxel).collect();
             let lut = normalisation_table::<T>(norm);
-            let g = Grid::new(Voxels::from_slice(&v), n, norm, &lut);
+            let mut g = Grid::new(Voxels::from_slice(&v), n, norm, &lut);
+            if bare {
+                g = g.with_unit_voxels();
+            }
             if std::is_x86_feature_detected!("avx2") {
                 assert_eq!(g.gather, expect, "{n:?}");
             }
@@ -377,24 +403,50 @@ mod tests {
     #[test]
     fn float32_samples_along_a_ray_are_the_single_samples() {
         let norm = Normalize::new(-0.1, 1.2);
-        along_is_one_at_a_time(float, norm, Some(Gather::Float32));
+        along_is_one_at_a_time(float, norm, Some(Gather::Float32), false);
     }
 
     #[test]
     fn float32_samples_in_the_unit_window_are_the_single_samples() {
         let norm = Normalize::new(0.0, 1.0);
-        along_is_one_at_a_time(float, norm, Some(Gather::Float32Unit));
+        along_is_one_at_a_time(float, norm, Some(Gather::Float32Unit), false);
+    }
+
+    /// float32 voxels all in [0, 1], zeros of both signs and both ends among them.
+    fn unit(i: usize) -> f32 {
+        match i % 11 {
+            0 => -0.0,
+            1 => 0.0,
+            2 => 1.0,
+            3 => f32::from_bits(1), // the smallest positive value
+            _ => (i * 37 % 101) as f32 / 100.0,
+        }
+    }
+
+    #[test]
+    fn unit_voxels_read_bare_are_the_single_samples() {
+        // read as they are, without the clamp: the bits of the clamped single samples
+        let norm = Normalize::new(0.0, 1.0);
+        along_is_one_at_a_time(unit, norm, Some(Gather::Float32Bare), true);
+        // and only in the unit window: any other stays as it was
+        let norm = Normalize::new(-0.1, 1.2);
+        along_is_one_at_a_time(unit, norm, Some(Gather::Float32), true);
     }
 
     #[test]
     fn uint8_samples_along_a_ray_are_the_single_samples() {
         let norm = Normalize::new(-0.1, 250.0);
-        along_is_one_at_a_time(|i| (i * 53 % 256) as u8, norm, Some(Gather::Bits8));
+        along_is_one_at_a_time(|i| (i * 53 % 256) as u8, norm, Some(Gather::Bits8), false);
     }
 
     #[test]
     fn uint16_samples_along_a_ray_are_the_single_samples() {
         let norm = Normalize::new(100.0, 60000.0);
-        along_is_one_at_a_time(|i| (i * 4099 % 65536) as u16, norm, Some(Gather::Bits16));
+        along_is_one_at_a_time(
+            |i| (i * 4099 % 65536) as u16,
+            norm,
+            Some(Gather::Bits16),
+            false,
+        );
     }
 }

@@ -7,7 +7,7 @@
 
 use std::arch::x86_64::*;
 
-use super::avx2::{f32_pair, Gather};
+use super::avx2::{f32_pair, Gather, ROW_BARE, ROW_GENERAL, ROW_UNIT};
 use super::Grid;
 use crate::volume::Voxel;
 
@@ -70,11 +70,15 @@ impl<T: Voxel> Grid<'_, T> {
             );
             let sample = match kind {
                 Gather::Float32 => {
-                    let corners = self.rows_f32_x8::<false>(base, c.rows);
+                    let corners = self.rows_f32_x8::<ROW_GENERAL>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
                 Gather::Float32Unit => {
-                    let corners = self.rows_f32_x8::<true>(base, c.rows);
+                    let corners = self.rows_f32_x8::<ROW_UNIT>(base, c.rows);
+                    interpolate(corners, fx, fy, fz)
+                }
+                Gather::Float32Bare => {
+                    let corners = self.rows_f32_x8::<ROW_BARE>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
                 Gather::Bits16 => {
@@ -99,7 +103,7 @@ impl<T: Voxel> Grid<'_, T> {
     /// offset (one load per lane and row, the offset in the address).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
-    unsafe fn rows_f32_x8<const UNIT: bool>(
+    unsafe fn rows_f32_x8<const KIND: u8>(
         &self,
         base: __m512i,
         rows: [i64; 4],
@@ -111,7 +115,7 @@ impl<T: Voxel> Grid<'_, T> {
         let row = |r: usize| {
             let p = data.offset(rows[r] as isize);
             let w = |k: usize| f32_pair(p, base[k]);
-            self.row_f32_x8::<UNIT>(_mm512_set_epi64(
+            self.row_f32_x8::<KIND>(_mm512_set_epi64(
                 w(7),
                 w(6),
                 w(5),
@@ -126,15 +130,18 @@ impl<T: Voxel> Grid<'_, T> {
     }
 
     /// The normalised float32 voxels of eight lanes from `pairs`, each lane two
-    /// adjacent voxels as one 64-bit word (the first in the low half); `UNIT` for
-    /// the window [0, 1] ([`Gather::Float32Unit`]).
+    /// adjacent voxels as one 64-bit word (the first in the low half), normalised
+    /// as `KIND` says (`avx2.rs`: [`ROW_GENERAL`], [`ROW_UNIT`], [`ROW_BARE`]).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
-    unsafe fn row_f32_x8<const UNIT: bool>(&self, pairs: __m512i) -> (__m256, __m256) {
+    unsafe fn row_f32_x8<const KIND: u8>(&self, pairs: __m512i) -> (__m256, __m256) {
         // the low and high halves of each 64-bit element: voxels `at` and `at + 1`
         let a = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(pairs));
         let b = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(_mm512_srli_epi64::<32>(pairs)));
-        if UNIT {
+        if KIND == ROW_BARE {
+            return (a, b);
+        }
+        if KIND == ROW_UNIT {
             // max with 0 (NaN -> 0, -0 -> 0), min with 1, as `avx2.rs`
             let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
             let clamp = |v: __m256| _mm256_min_ps(_mm256_max_ps(v, zero), one);
