@@ -44,6 +44,46 @@ impl<T: Voxel> Grid<'_, T> {
     ) {
         debug_assert_eq!(ts.len(), out.len());
         let c = self.lane_constants(o, d);
+        let groups = ts.len() / 8;
+        let rest = 8 * groups;
+        if groups > 0 {
+            // a position `o + d t` moves monotonically with `t` on each axis (its
+            // rounding too), so when every `t` lies between the first and the last
+            // (as a march's do; NaN does not) and the positions of those two lie
+            // inside every axis' cells (0 < x < last), every lane's does: the
+            // clamps are then identities, and are left out
+            let (lo, hi) = (ts[0], ts[rest - 1]);
+            let between = ts[..rest]
+                .iter()
+                .fold(true, |ok, &t| ok & (t >= lo) & (t <= hi));
+            let inside = between
+                && c.axes.iter().all(|&[o, d, last, _]| {
+                    let x = |t: f64| o + d * t;
+                    let (a, b) = (x(lo), x(hi));
+                    a > 0.0 && a < last && b > 0.0 && b < last
+                });
+            if inside {
+                self.groups_avx512::<false>(&c, &ts[..rest], &mut out[..rest]);
+            } else {
+                self.groups_avx512::<true>(&c, &ts[..rest], &mut out[..rest]);
+            }
+        }
+        self.trilinear_avx2(o, d, &ts[rest..], &mut out[rest..]);
+    }
+
+    /// [`Grid::trilinear_avx512`] of whole groups of eight (`ts.len()` a multiple of
+    /// 8), the positions clamped to the grid unless `CLAMP` is false (the caller
+    /// has found every position inside the grid's cells, where the clamps change
+    /// nothing).
+    #[target_feature(enable = "avx2,avx512f")]
+    #[inline]
+    unsafe fn groups_avx512<const CLAMP: bool>(
+        &self,
+        c: &super::avx2::LaneConstants,
+        ts: &[f64],
+        out: &mut [f32],
+    ) {
+        debug_assert!(ts.len().is_multiple_of(8) && ts.len() == out.len());
         let kind = c.kind;
         let axes = c.axes.map(|[o, d, last, top]| Axis {
             o: _mm512_set1_pd(o),
@@ -53,13 +93,12 @@ impl<T: Voxel> Grid<'_, T> {
         });
         let [sx, sxy] = c.strides.map(|s| _mm512_set1_epi64(s));
         let rows = c.rows.map(|r| _mm512_set1_epi64(r));
-        let groups = ts.len() / 8;
-        for g in 0..groups {
+        for g in 0..ts.len() / 8 {
             let at = 8 * g;
             let t = _mm512_loadu_pd(ts.as_ptr().add(at));
-            let (ix, fx) = locate(&axes[0], t);
-            let (iy, fy) = locate(&axes[1], t);
-            let (iz, fz) = locate(&axes[2], t);
+            let (ix, fx) = locate::<CLAMP>(&axes[0], t);
+            let (iy, fy) = locate::<CLAMP>(&axes[1], t);
+            let (iz, fz) = locate::<CLAMP>(&axes[2], t);
             // flat index of each lane's cell (each below 2^31, the products below 2^62)
             let base = _mm512_add_epi64(
                 _mm512_add_epi64(
@@ -92,8 +131,6 @@ impl<T: Voxel> Grid<'_, T> {
             };
             _mm256_storeu_ps(out.as_mut_ptr().add(at), sample);
         }
-        let rest = 8 * groups;
-        self.trilinear_avx2(o, d, &ts[rest..], &mut out[rest..]);
     }
 
     /// The normalised float32 voxels of the four rows of each of eight lanes'
@@ -175,8 +212,15 @@ impl<T: Voxel> Grid<'_, T> {
 /// cell's first voxel (i32 lanes) and the fraction across it (as `avx2.rs`).
 #[target_feature(enable = "avx2,avx512f")]
 #[inline]
-unsafe fn locate(a: &Axis, t: __m512d) -> (__m256i, __m256) {
+unsafe fn locate<const CLAMP: bool>(a: &Axis, t: __m512d) -> (__m256i, __m256) {
     let x = _mm512_add_pd(a.o, _mm512_mul_pd(a.d, t));
+    if !CLAMP {
+        // 0 < x < last (the caller's): x is its own clamp, and its floor, at most
+        // the last cell's first voxel, the cell
+        let i = _mm512_cvttpd_epi32(x);
+        let f = _mm512_cvtpd_ps(_mm512_sub_pd(x, _mm512_cvtepi32_pd(i)));
+        return (i, f);
+    }
     let x = _mm512_min_pd(_mm512_max_pd(x, _mm512_setzero_pd()), a.last);
     let i = _mm512_cvttpd_epi32(_mm512_min_pd(x, a.top));
     let f = _mm512_cvtpd_ps(_mm512_sub_pd(x, _mm512_cvtepi32_pd(i)));
