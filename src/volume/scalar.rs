@@ -704,6 +704,7 @@ impl PartialEq for VolumeData {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
 
     #[test]
     fn unit_interval_check_takes_both_zeros_and_ends_and_refuses_the_rest() {
@@ -730,7 +731,6 @@ mod tests {
             .collect();
         assert!(Voxels::<f32>::from_bytes(&bytes[1..]).all_in_unit_interval());
     }
-    use super::*;
 
     #[test]
     fn aliases_parse() {

@@ -7,7 +7,7 @@
 
 use std::arch::x86_64::*;
 
-use super::avx2::{f32_pair, Gather, ROW_BARE, ROW_GENERAL, ROW_UNIT};
+use super::avx2::{f32_pair, Gather, LaneConstants, ROW_BARE, ROW_GENERAL, ROW_UNIT};
 use super::Grid;
 use crate::volume::Voxel;
 
@@ -79,7 +79,7 @@ impl<T: Voxel> Grid<'_, T> {
     #[inline]
     unsafe fn groups_avx512<const CLAMP: bool>(
         &self,
-        c: &super::avx2::LaneConstants,
+        c: &LaneConstants,
         ts: &[f64],
         out: &mut [f32],
     ) {
