@@ -119,14 +119,22 @@ impl<T: Voxel> Grid<'_, T> {
         debug_assert_eq!(ts.len(), out.len());
         let c = self.lane_constants(o, d);
         let kind = c.kind;
-        let axes = c.axes.map(|[o, d, last, top]| Axis {
-            o: _mm256_set1_pd(o),
-            d: _mm256_set1_pd(d),
-            last: _mm256_set1_pd(last),
-            top: _mm256_set1_pd(top),
-        });
-        let [sx, sxy] = c.strides.map(|s| _mm256_set1_epi64x(s));
-        let rows = c.rows.map(|r| _mm256_set1_epi64x(r));
+        // broadcast here, not through `array::map`: its closures do not take this
+        // function's target features, so each `set1` was a call and the arrays were
+        // copied by `memcpy`, a cost per call that short calls felt
+        let axes = [
+            Axis::new(c.axes[0]),
+            Axis::new(c.axes[1]),
+            Axis::new(c.axes[2]),
+        ];
+        let broadcast = |x: i64| _mm256_set1_epi64x(x);
+        let [sx, sxy] = [broadcast(c.strides[0]), broadcast(c.strides[1])];
+        let rows = [
+            broadcast(c.rows[0]),
+            broadcast(c.rows[1]),
+            broadcast(c.rows[2]),
+            broadcast(c.rows[3]),
+        ];
         let groups = ts.len() / 4;
         for g in 0..groups {
             let t = _mm256_loadu_pd(ts.as_ptr().add(4 * g));
@@ -279,6 +287,20 @@ struct Axis {
     d: __m256d,
     last: __m256d,
     top: __m256d,
+}
+
+impl Axis {
+    /// The lanes of one axis' `[o, d, last, top]` ([`LaneConstants::axes`]).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn new([o, d, last, top]: [f64; 4]) -> Axis {
+        Axis {
+            o: _mm256_set1_pd(o),
+            d: _mm256_set1_pd(d),
+            last: _mm256_set1_pd(last),
+            top: _mm256_set1_pd(top),
+        }
+    }
 }
 
 /// The position `o + d t` on one axis, clamped to the grid (NaN to 0), as the

@@ -25,6 +25,20 @@ struct Axis {
     top: __m512d,
 }
 
+impl Axis {
+    /// The lanes of one axis' `[o, d, last, top]` (`LaneConstants::axes`).
+    #[target_feature(enable = "avx2,avx512f")]
+    #[inline]
+    unsafe fn new([o, d, last, top]: [f64; 4]) -> Axis {
+        Axis {
+            o: _mm512_set1_pd(o),
+            d: _mm512_set1_pd(d),
+            last: _mm512_set1_pd(last),
+            top: _mm512_set1_pd(top),
+        }
+    }
+}
+
 impl<T: Voxel> Grid<'_, T> {
     /// The trilinear samples at `o + d t` (index space) for each `t` of `ts`, into
     /// `out` (as long as `ts`), eight at a time: the bits of [`Grid::trilinear`] at
@@ -85,14 +99,20 @@ impl<T: Voxel> Grid<'_, T> {
     ) {
         debug_assert!(ts.len().is_multiple_of(8) && ts.len() == out.len());
         let kind = c.kind;
-        let axes = c.axes.map(|[o, d, last, top]| Axis {
-            o: _mm512_set1_pd(o),
-            d: _mm512_set1_pd(d),
-            last: _mm512_set1_pd(last),
-            top: _mm512_set1_pd(top),
-        });
-        let [sx, sxy] = c.strides.map(|s| _mm512_set1_epi64(s));
-        let rows = c.rows.map(|r| _mm512_set1_epi64(r));
+        // broadcast here, not through `array::map` (as `avx2.rs`)
+        let axes = [
+            Axis::new(c.axes[0]),
+            Axis::new(c.axes[1]),
+            Axis::new(c.axes[2]),
+        ];
+        let broadcast = |x: i64| _mm512_set1_epi64(x);
+        let [sx, sxy] = [broadcast(c.strides[0]), broadcast(c.strides[1])];
+        let rows = [
+            broadcast(c.rows[0]),
+            broadcast(c.rows[1]),
+            broadcast(c.rows[2]),
+            broadcast(c.rows[3]),
+        ];
         for g in 0..ts.len() / 8 {
             let at = 8 * g;
             let t = _mm512_loadu_pd(ts.as_ptr().add(at));
