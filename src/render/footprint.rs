@@ -5,14 +5,17 @@
 //! it ([`Integrand::fixed_skippable`](super::integrator::Integrand::fixed_skippable):
 //! the composite's transparent cells, the X-ray's and the average's zero cells), a
 //! ray's walk through the macrocells only needs to cover the part of the ray where
-//! such a cell can lie: in front of it and behind it, the walk would pass over
-//! every cell anyway. [`Footprint`] holds the boxes of those cells (index space,
+//! a cell it does not pass over can lie: in front of it and behind it, the walk
+//! would pass over every cell anyway. MIP's walks cover the part where a cell that
+//! is not all zero can lie ([`Integrand::window_passes`](super::integrator::Integrand::window_passes)):
+//! the zeros outside it cannot raise a maximum. [`Footprint`] holds the boxes of those cells (index space,
 //! merged into blocks on large grids); [`Footprint::windows`] projects them into a
 //! view and gives each tile of pixels the interval of `t` its rays need, widened by
 //! a voxel for round-off. The walk ([`drive`](super::integrator::drive)) then starts
 //! and ends inside cells it passes over, so it hands the integrand the same samples
 //! in the same calls: the image and the samples taken are the same, bit for bit
-//! (`frame.rs` tests every pixel of views against the walk of the whole ray).
+//! (`frame.rs` tests every pixel of views against the walk of the whole ray; for
+//! MIP, the image, with no more samples).
 //!
 //! On the peer benchmark's composite (bench/peers/README.md), the walks spend about
 //! two thirds of their steps in front of the first cell that is not transparent or

@@ -101,15 +101,15 @@ impl<'a, F: Field, I: Integrand> Kernel<'a, F, I> {
     }
 
     /// Per tile of `view`, the part of the rays a macrocell walk must cover: for
-    /// integrands whose cells are passed over whatever the ray saw
-    /// ([`Integrand::fixed_skippable`]), on passes that skip.
+    /// integrands that say which cells a walk may leave out
+    /// ([`Integrand::window_passes`]), on passes that skip.
     fn windows(&self, view: &View, frame: &IndexFrame) -> Option<Windows> {
         let grid = self.grid?;
         let footprint = self.footprint.get_or_init(|| {
             // an integrand answers `None` for every cell or for none
-            self.integrand.fixed_skippable(0, grid.range(0))?;
+            self.integrand.window_passes(0, grid.range(0))?;
             Some(Footprint::new(grid, |m, range| {
-                self.integrand.fixed_skippable(m, range) == Some(false)
+                self.integrand.window_passes(m, range) == Some(false)
             }))
         });
         Some(footprint.as_ref()?.windows(view, frame, WINDOW_TILE))
@@ -262,6 +262,18 @@ mod tests {
         view: &View,
         frame: &IndexFrame,
     ) -> u64 {
+        let (windowed, whole) = same_pixels_as_whole_walks(kernel, view, frame);
+        assert_eq!(windowed, whole, "{view:?}: samples taken");
+        windowed.taken
+    }
+
+    /// Each pixel of `kernel`'s render of `view` against its ray walked whole: the
+    /// same bits. Returns the samples of both.
+    fn same_pixels_as_whole_walks<F: Field, I: Integrand>(
+        kernel: &Kernel<'_, F, I>,
+        view: &View,
+        frame: &IndexFrame,
+    ) -> (Counts, Counts) {
         let (film, counts) = kernel.render(view, frame);
         let miss = kernel.integrand.miss();
         let mut sum = Counts::default();
@@ -279,16 +291,23 @@ mod tests {
                 sum += c;
             }
         }
-        assert_eq!(counts, sum, "{view:?}: samples taken");
-        counts.taken
+        (counts, sum)
     }
 
-    /// Walks limited to the windows of `footprint.rs` give every pixel, and take
-    /// every sample, of the whole walks: X-ray, average and composite passes (with
-    /// and without jitter) over scattered blobs, in orthographic and perspective views (an eye
-    /// inside the volume, an off-axis one), and the windows do narrow the walks.
-    #[test]
-    fn windowed_walks_give_every_pixel_of_the_whole_walks() {
+    /// The pixels of `view` whose rays' windows are empty.
+    fn empty_windows(w: &Windows, view: &View) -> usize {
+        (0..view.height)
+            .flat_map(|j| (0..view.width).map(move |i| (i, j)))
+            .filter(|&(i, j)| {
+                let [lo, hi] = w.at(i, j);
+                lo > hi
+            })
+            .count()
+    }
+
+    /// Three blobs in a 40 x 34 x 30 volume, zero elsewhere (every zero voxel with
+    /// an odd index -0.0 when `negative_zeros`).
+    fn blobs(negative_zeros: bool) -> ([usize; 3], Vec<f32>) {
         let n = [40, 34, 30];
         let blobs = [
             ([8.0, 7.0, 6.0], 3.0),
@@ -304,26 +323,27 @@ mod tests {
                         .iter()
                         .map(|&(c, r)| (1.0 - p.distance(DVec3::from_array(c)) / r).max(0.0))
                         .sum::<f64>();
-                    v.push(f.min(1.0) as f32);
+                    let f = f.min(1.0) as f32;
+                    let odd = v.len() % 2 == 1;
+                    v.push(if f == 0.0 && odd && negative_zeros {
+                        -0.0
+                    } else {
+                        f
+                    });
                 }
             }
         }
-        let grid = MacroGrid::from_values(n, Support::Linear, |i| v[i]);
-        let octants = MacroGrid::from_values(n, Support::LinearOctants, |i| v[i]);
+        (n, v)
+    }
+
+    /// The frame of a volume of `n` voxels with unequal spacings, and the views the
+    /// windowed-walk tests render: orthographic ones, a perspective one, the same
+    /// off axis, and one from inside the volume (the last).
+    fn window_test_views(n: [usize; 3]) -> (IndexFrame, Vec<View>, glam::DMat3) {
         let geometry = Geometry::from_spacing([0.9, 1.2, 1.5]);
         let m = geometry.index_from_world_matrix().unwrap();
         let frame = IndexFrame::new(n, None, &geometry, m);
         let sphere = frame.bounding_sphere(&geometry);
-        let field = Sampler::new(
-            &v,
-            n,
-            Normalize::new(0.0, 1.0),
-            Interpolation::Trilinear,
-            None,
-            GradientMethod::Central,
-            None,
-            m,
-        );
         let mut views: Vec<View> = [
             (Projection::Orthographic, 20.0, 15.0),
             (Projection::Orthographic, 0.0, 90.0),
@@ -336,6 +356,29 @@ mod tests {
         let mut inside = views[2];
         inside.eye = sphere.0;
         views.push(inside);
+        (frame, views, m)
+    }
+
+    /// Walks limited to the windows of `footprint.rs` give every pixel, and take
+    /// every sample, of the whole walks: X-ray, average and composite passes (with
+    /// and without jitter) over scattered blobs, in orthographic and perspective views (an eye
+    /// inside the volume, an off-axis one), and the windows do narrow the walks.
+    #[test]
+    fn windowed_walks_give_every_pixel_of_the_whole_walks() {
+        let (n, v) = blobs(false);
+        let grid = MacroGrid::from_values(n, Support::Linear, |i| v[i]);
+        let octants = MacroGrid::from_values(n, Support::LinearOctants, |i| v[i]);
+        let (frame, views, m) = window_test_views(n);
+        let field = Sampler::new(
+            &v,
+            n,
+            Normalize::new(0.0, 1.0),
+            Interpolation::Trilinear,
+            None,
+            GradientMethod::Central,
+            None,
+            m,
+        );
         let xray = Xray {
             output: XrayOutput::Integral,
             mu: 1.0,
@@ -361,17 +404,58 @@ mod tests {
                 );
                 nominal += 2 * k.render(view, &frame).1.nominal;
                 let w = k.windows(view, &frame).expect("X-ray passes have windows");
-                let empty = (0..view.height)
-                    .flat_map(|j| (0..view.width).map(move |i| (i, j)))
-                    .filter(|&(i, j)| {
-                        let [lo, hi] = w.at(i, j);
-                        lo > hi
-                    })
-                    .count();
+                let empty = empty_windows(&w, view);
                 // (from inside the volume, the cell around the eye covers the image)
                 assert!(n == 4 || empty > 0, "{view:?}: no ray is passed over whole");
             }
         }
         assert!(taken > 0 && taken * 3 < nominal * 2, "{taken} of {nominal}");
+    }
+
+    /// MIP's walks limited to the windows of its cells that are not all zero
+    /// (`Mip::window_passes`) give every pixel of the whole walks, with voxels of
+    /// +0 and -0 (a ray that meets only zeros has the maximum of its first sample),
+    /// and of every sample taken without skipping, and take no more samples than
+    /// the whole walks; MinIP has no windows.
+    #[test]
+    fn windowed_mip_gives_every_pixel_of_the_whole_walks() {
+        use crate::render::integrator::{Minip, Mip};
+        for negative_zeros in [false, true] {
+            let (n, v) = blobs(negative_zeros);
+            let grid = MacroGrid::from_values(n, Support::Linear, |i| v[i]);
+            let (frame, views, m) = window_test_views(n);
+            for interpolation in [Interpolation::Trilinear, Interpolation::Nearest] {
+                let field = Sampler::new(
+                    &v,
+                    n,
+                    Normalize::new(0.0, 1.0),
+                    interpolation,
+                    None,
+                    GradientMethod::Central,
+                    None,
+                    m,
+                );
+                let mip = Kernel::new(&field, Mip, Some(&grid), 0.37, None, &[]);
+                let minip = Kernel::new(&field, Minip, Some(&grid), 0.37, None, &[]);
+                let every = Kernel::new(&field, Mip, None, 0.37, None, &[]);
+                for (k, view) in views.iter().enumerate() {
+                    let (a, b) = same_pixels_as_whole_walks(&mip, view, &frame);
+                    assert!(a.taken <= b.taken && a.nominal == b.nominal, "{view:?}");
+                    // and those of every sample, unskipped
+                    let bits = |f: &Film| f.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    let (skipped, unskipped) =
+                        (mip.render(view, &frame), every.render(view, &frame));
+                    assert_eq!(bits(&skipped.0), bits(&unskipped.0), "{view:?}");
+                    assert!(skipped.1.taken < unskipped.1.taken);
+                    assert!(minip.windows(view, &frame).is_none());
+                    same_as_whole_walks(&minip, view, &frame);
+                    // the windows leave rays out (from inside the volume, the cell
+                    // around the eye covers the image)
+                    let w = mip.windows(view, &frame).expect("MIP passes have windows");
+                    let empty = empty_windows(&w, view);
+                    assert!(k == 4 || empty > 0, "{view:?}: no ray is left out");
+                }
+            }
+        }
     }
 }

@@ -67,11 +67,13 @@ pub struct PixelRay {
     /// `t_enter`.
     pub cut: Option<Cut>,
     /// The part of `[t_enter, t_exit]` a walk through the macrocells must cover:
-    /// outside it, the pass passes over every macrocell whatever the ray has seen
-    /// ([`Integrand::fixed_skippable`], `footprint.rs`). The whole interval unless
-    /// the view found a narrower one; empty (start above end) when nothing on the
-    /// ray can matter. The walk's ends lie in cells passed over, so the samples the
-    /// integrand is handed are those of the whole walk.
+    /// outside it lie only cells the integrand's [`Integrand::window_passes`]
+    /// answers true for (`footprint.rs`): cells the pass passes over whatever the
+    /// ray has seen ([`Integrand::fixed_skippable`]), or, for MIP, cells of zeros.
+    /// The whole interval unless the view found a narrower one; empty (start above
+    /// end) when nothing on the ray can matter. The walk's ends lie in such cells,
+    /// so the samples a pass with fixed answers is handed are those of the whole
+    /// walk.
     pub walk: [f64; 2],
 }
 
@@ -105,6 +107,16 @@ pub trait Integrand: Sync {
     /// that is not passed over can lie ([`PixelRay::walk`]).
     fn fixed_skippable(&self, _cell: usize, _range: [f32; 2]) -> Option<bool> {
         None
+    }
+
+    /// Whether a ray's walk may leave macrocell `cell`, whose values lie in
+    /// `range`, outside its window ([`PixelRay::walk`]): `Some` for every cell or
+    /// for none, and then a view's rays walk only the part where a cell answered
+    /// `Some(false)` can lie. The integrand's [`Integrand::trace`] must give the
+    /// pixel of the whole walk from the window. The default is
+    /// [`Integrand::fixed_skippable`], whose cells the walk passes over anyway.
+    fn window_passes(&self, cell: usize, range: [f32; 2]) -> Option<bool> {
+        self.fixed_skippable(cell, range)
     }
 
     /// Integrates one ray sampled at `march` (exact integrands ignore it), passing

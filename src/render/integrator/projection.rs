@@ -1,7 +1,9 @@
 //! MIP, MinIP, average and local MIP (REFERENCE.md "Render modes").
 //!
 //! Skipping: MIP passes over macrocells whose maximum cannot beat the running
-//! maximum (MinIP symmetrically), the average over all-zero ones, and local MIP,
+//! maximum (MinIP symmetrically), and walks only the part of a ray where a cell
+//! that is not all zero can lie (`footprint.rs`); the average passes over all-zero
+//! cells, and local MIP,
 //! while it looks for the first sample at or above its threshold, over those that
 //! cannot reach it (a ray that never reaches it is then answered by MIP).
 
@@ -72,6 +74,11 @@ trait Ranked: Consumer {
     /// (the consumer's answer may depend on the order).
     fn skippable_earlier(&self, range: [f32; 2]) -> bool {
         self.skippable(0, range)
+    }
+    /// Whether the ray's first sample alone gives the result when the best rank
+    /// of its cells is `best` (a maximum over cells of zeros only).
+    fn first_settles(&self, _best: f32) -> bool {
+        false
     }
 }
 
@@ -206,6 +213,20 @@ impl Ranked for Extremum {
             -range[0]
         }
     }
+
+    /// Ranges lie in [0, 1] (`skip.rs`): cells whose maximum is at most zero hold
+    /// only zeros, and the maximum of zeros is the first (a tie keeps the earlier
+    /// sample, +0 or -0).
+    fn first_settles(&self, best: f32) -> bool {
+        self.max && best <= 0.0
+    }
+}
+
+/// Hands `e` the first sample of `march` (if it has one); the samples taken.
+fn first_sample<F: Field, C: Consumer>(field: &F, ray: &PixelRay, march: &March, e: &mut C) -> u64 {
+    let first = march.len().min(1);
+    let _ = Batch::default().sample(field, &ray.index, march, 0, first, e);
+    first as u64
 }
 
 impl Consumer for Extremum {
@@ -257,7 +278,13 @@ fn extremum<F: Field>(
         max,
     };
     let nominal = march.len() as u64;
-    let taken = drive_ranked(field, ray, march, grid, &mut e);
+    let [w0, w1] = ray.walk;
+    let taken = if max && grid.is_some() && w0 > w1 {
+        // the ray meets only cells of zeros (`Mip::window_passes`)
+        first_sample(field, ray, march, &mut e)
+    } else {
+        drive_ranked(field, ray, march, grid, &mut e)
+    };
     ([e.best, 0.0, 0.0, 0.0], Counts { taken, nominal })
 }
 
@@ -310,7 +337,11 @@ fn brightest_first<F: Field, C: Ranked>(
     let mut count = 0;
     let (mut best_key, mut best_span) = (f32::NEG_INFINITY, 0);
     let mut complete = false;
-    for span in grid.walk(&ray.index, ray.t_enter, ray.t_exit) {
+    // the ray's window (the whole ray but for MIP): the first span's samples start
+    // at the ray's first, the last's end at its last, so samples outside the
+    // window belong to the spans at its ends, cells of zeros (`Mip::window_passes`)
+    let [w0, w1] = ray.walk;
+    for span in grid.walk(&ray.index, w0, w1) {
         if count == MAX_SPANS {
             return None;
         }
@@ -328,6 +359,9 @@ fn brightest_first<F: Field, C: Ranked>(
     // a walk that ended early (non-finite parameters) goes in order
     if !complete {
         return None;
+    }
+    if e.first_settles(best_key) {
+        return Some(first_sample(field, ray, march, e));
     }
     // SAFETY: the first `count` entries were written above; `MaybeUninit<T>` has the
     // layout of `T`.
@@ -348,7 +382,13 @@ fn brightest_first<F: Field, C: Ranked>(
             return;
         }
         let a = if s == 0 { 0 } else { end(s - 1) };
-        let b = end(s).max(a);
+        let mut b = end(s).max(a);
+        if e.first_settles(e.rank(range)) {
+            // a cell of zeros, sampled only while nothing has been (as the one a
+            // window starts in, with every sample in front of it): its first
+            // sample is its maximum
+            b = b.min(a + 1);
+        }
         // the extremum's consumers never stop a ray
         let _ = batch.sample(field, &ray.index, march, a, b, e);
         taken += (b - a) as u64;
@@ -365,6 +405,14 @@ fn brightest_first<F: Field, C: Ranked>(
 impl Integrand for Mip {
     fn channels(&self) -> usize {
         1
+    }
+
+    /// Cells of zeros (whose samples are all zero): a ray's maximum is the same
+    /// without those in front of and behind its other cells, as they are passed
+    /// over once any sample is taken, and a ray that meets no other cell has the
+    /// maximum of its first sample ([`extremum`]).
+    fn window_passes(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
+        Some(range[0] >= 0.0 && range[1] <= 0.0)
     }
 
     #[inline]
