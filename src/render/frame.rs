@@ -416,10 +416,11 @@ mod tests {
     /// (`Mip::window_passes`) give every pixel of the whole walks, with voxels of
     /// +0 and -0 (a ray that meets only zeros has the maximum of its first sample),
     /// and of every sample taken without skipping, and take no more samples than
-    /// the whole walks; MinIP has no windows.
+    /// the whole walks; so do local MIP's with a threshold above zero; MinIP, and
+    /// local MIP with a threshold of zero, have no windows.
     #[test]
-    fn windowed_mip_gives_every_pixel_of_the_whole_walks() {
-        use crate::render::integrator::{Minip, Mip};
+    fn windowed_mip_and_local_mip_give_every_pixel_of_the_whole_walks() {
+        use crate::render::integrator::{Lmip, Minip, Mip};
         for negative_zeros in [false, true] {
             let (n, v) = blobs(negative_zeros);
             let grid = MacroGrid::from_values(n, Support::Linear, |i| v[i]);
@@ -438,15 +439,29 @@ mod tests {
                 let mip = Kernel::new(&field, Mip, Some(&grid), 0.37, None, &[]);
                 let minip = Kernel::new(&field, Minip, Some(&grid), 0.37, None, &[]);
                 let every = Kernel::new(&field, Mip, None, 0.37, None, &[]);
+                let lmip = |threshold, grid| {
+                    Kernel::new(&field, Lmip { threshold }, grid, 0.37, None, &[])
+                };
+                let lmips = [0.3, 0.8].map(|t| (lmip(t, Some(&grid)), lmip(t, None)));
+                let lmip_zero = lmip(0.0, Some(&grid));
+                let bits = |f: &Film| f.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 for (k, view) in views.iter().enumerate() {
                     let (a, b) = same_pixels_as_whole_walks(&mip, view, &frame);
                     assert!(a.taken <= b.taken && a.nominal == b.nominal, "{view:?}");
                     // and those of every sample, unskipped
-                    let bits = |f: &Film| f.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                     let (skipped, unskipped) =
                         (mip.render(view, &frame), every.render(view, &frame));
                     assert_eq!(bits(&skipped.0), bits(&unskipped.0), "{view:?}");
                     assert!(skipped.1.taken < unskipped.1.taken);
+                    // local MIP over the same windows (a threshold of 0 has none)
+                    for (l, unskipped) in &lmips {
+                        let (a, b) = same_pixels_as_whole_walks(l, view, &frame);
+                        assert!(a.taken <= b.taken, "{view:?}");
+                        let (x, y) = (l.render(view, &frame), unskipped.render(view, &frame));
+                        assert_eq!(bits(&x.0), bits(&y.0), "{view:?}");
+                        assert!(l.windows(view, &frame).is_some());
+                    }
+                    assert!(lmip_zero.windows(view, &frame).is_none());
                     assert!(minip.windows(view, &frame).is_none());
                     same_as_whole_walks(&minip, view, &frame);
                     // the windows leave rays out (from inside the volume, the cell

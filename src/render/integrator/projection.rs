@@ -516,6 +516,18 @@ impl Integrand for Lmip {
         1
     }
 
+    /// Cells of zeros, as MIP's ([`Mip::window_passes`]), when the threshold is
+    /// above zero: no climb starts in them, one that reaches them ends at their
+    /// first sample (taken: a climbing ray passes over nothing), and the ray that
+    /// never reaches the threshold is answered by MIP over the same window.
+    fn window_passes(&self, cell: usize, range: [f32; 2]) -> Option<bool> {
+        if self.threshold > 0.0 {
+            Mip.window_passes(cell, range)
+        } else {
+            None
+        }
+    }
+
     /// The first local maximum among samples at or above the threshold. Where no
     /// sample reaches the threshold the result is the ray's maximum (as in Sato et
     /// al. 1998), so the image has no holes.
