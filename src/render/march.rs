@@ -40,9 +40,15 @@ pub trait Lattice {
         let g = self.guess(t);
         let i = if g > 0.0 {
             // the ceiling without a library call (no rounding instruction on
-            // baseline x86-64); a huge guess saturates and is clamped
-            let c = g as usize;
-            (if (c as f64) < g { c + 1 } else { c }).min(n)
+            // baseline x86-64), through i64 (one conversion each way, where
+            // usize's take several); a huge guess saturates and is clamped
+            let c = g as i64;
+            let c = if (c as f64) < g {
+                c.saturating_add(1)
+            } else {
+                c
+            };
+            c.min(n as i64) as usize
         } else {
             0
         };
@@ -79,6 +85,9 @@ pub struct March {
     t0: f64,
     t1: f64,
     dt: f64,
+    /// `1 / dt`, for [`Lattice::guess`] (a multiplication where a division would
+    /// wait longer: the guess is corrected against the positions anyway).
+    inv_dt: f64,
     /// Sample `i >= 1` sits at `t0 + (i + shift) dt`; `shift` is in `(-1, 0]`.
     shift: f64,
     full_steps: usize,
@@ -109,6 +118,7 @@ impl March {
             t0,
             t1,
             dt,
+            inv_dt: 1.0 / dt,
             shift,
             full_steps,
             tail,
@@ -220,7 +230,7 @@ impl Lattice for March {
 
     #[inline]
     fn guess(&self, t: f64) -> f64 {
-        (t - self.t0) / self.dt - self.shift
+        (t - self.t0) * self.inv_dt - self.shift
     }
 
     /// A run before the last position (the common case) without a test of the

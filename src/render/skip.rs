@@ -548,10 +548,12 @@ impl Walk<'_> {
         let mut mid = [0.0f64; 3];
         let mut cuts = [0.0f64; 3];
         let mut k = 0;
+        // in i64, whose conversion to f64 is one instruction (a u64's is several)
+        let m = MACROCELL as i64;
         for a in 0..3 {
-            let c = at[a].clamp(0, grid.dims[a] as i64 - 1) as usize;
-            let hi = ((c + 1) * MACROCELL).min(grid.n[a] - 1);
-            mid[a] = (c * MACROCELL + MACROCELL / 2).min(hi) as f64;
+            let c = at[a].clamp(0, grid.dims[a] as i64 - 1);
+            let hi = ((c + 1) * m).min(grid.n[a] as i64 - 1);
+            mid[a] = (c * m + m / 2).min(hi) as f64;
             if inv[a] != 0.0 {
                 let t = (mid[a] - o[a]) * inv[a];
                 if t > t0 && t < t1 {
