@@ -125,7 +125,8 @@ fn check_prints_the_plan_and_writes_nothing() {
         "{out}"
     );
     // a MIP computes neither gradients nor tables, skips cells that cannot beat its
-    // maximum, and says so; --no-skip takes the grid away
+    // maximum and walks only where cells are not all zero, and says so; --no-skip
+    // takes the grid away
     let scene = root().join("scenes/mip_head.toml");
     let o = volcast(tmp.path(), &["check", scene.to_str().unwrap()]);
     let out = String::from_utf8_lossy(&o.stdout);
@@ -133,7 +134,10 @@ fn check_prints_the_plan_and_writes_nothing() {
         !out.contains("gradient") && !out.contains("transfer table"),
         "{out}"
     );
-    assert!(out.contains("cannot beat the running maximum"), "{out}");
+    assert!(
+        out.contains("cannot beat the running maximum, walking only where cells are not all zero"),
+        "{out}"
+    );
     let o = volcast(tmp.path(), &["check", scene.to_str().unwrap(), "--no-skip"]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success() && !out.contains("skipping"), "{out}");

@@ -452,8 +452,12 @@ impl RenderPass {
             let what = match (&self.mode, source) {
                 (ModeSpec::Xray(_) | ModeSpec::Average, _)
                 | (ModeSpec::Exact(Exact::Xray { .. } | Exact::Average), _) => "all-zero cells",
-                (ModeSpec::Mip | ModeSpec::Exact(Exact::Mip), _) => {
-                    "cells that cannot beat the running maximum"
+                (ModeSpec::Mip, _) => {
+                    "cells that cannot beat the running maximum, walking only where cells are not all zero"
+                }
+                (ModeSpec::Exact(Exact::Mip), _) => "cells that cannot beat the running maximum",
+                (ModeSpec::Lmip(l), _) if l.threshold > 0.0 => {
+                    "cells that cannot reach the threshold, walking only where cells are not all zero"
                 }
                 (ModeSpec::CuedMip(_) | ModeSpec::Exact(Exact::CuedMip(_)), _) => {
                     "cells that cannot beat the running weighted maximum"

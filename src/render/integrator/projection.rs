@@ -75,6 +75,7 @@ trait Ranked: Consumer {
     fn skippable_earlier(&self, range: [f32; 2]) -> bool {
         self.skippable(0, range)
     }
+
     /// Whether the ray's first sample alone gives the result when the best rank
     /// of its cells is `best` (a maximum over cells of zeros only).
     fn first_settles(&self, _best: f32) -> bool {
