@@ -1,7 +1,22 @@
 //! The parallel rendering of the remaining frames, batch by batch: distinct views
 //! rendered once (stereo reuse), handed to the sink with their grey windows.
 
-use super::*;
+use std::collections::{BTreeSet, HashMap, HashSet};
+use std::path::PathBuf;
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::{CacheKey, Emit, EyeView, FrameViews, Rendered, Summary};
+use crate::error::Error;
+use crate::output::display::Window;
+use crate::output::Eye;
+use crate::plan::Plan;
+use crate::render::{Film, ImageKind, RenderView, Resources};
+use crate::sample::Normalize;
+use crate::scene::{Format, Scene};
+use crate::views::{frames_per_batch, ViewKey};
+use crate::volume::Volume;
 
 pub(super) fn render_passes(
     scene: &Scene,

@@ -27,26 +27,20 @@ use frames::render_passes;
 use resume::{completed, create_folders, finish, jobs};
 use write::write_frame;
 
-use std::collections::{BTreeSet, HashMap, HashSet};
-use std::path::{Path, PathBuf};
+use std::collections::HashSet;
+use std::path::PathBuf;
 use std::time::Instant;
-
-use rayon::prelude::*;
-use serde_json::json;
 
 use crate::error::Error;
 use crate::output::animation;
-use crate::output::display::{to_display, DisplayKind, Window};
-use crate::output::manifest::{
-    self, FileRecord, FrameRecord, ManifestHead, ManifestStatus, ViewRecord,
-};
-use crate::output::{encode, frame_path, stereo, viewer, Eye};
+use crate::output::display::Window;
+use crate::output::manifest::{self, FrameRecord, ManifestStatus, ViewRecord};
+use crate::output::Eye;
 use crate::plan::{Plan, RunOptions};
-use crate::render::{Film, ImageKind, RenderView, Resources, View};
-use crate::sample::Normalize;
-use crate::scene::{AnaglyphColors, Format, Layout, Scene};
-use crate::views::{frames_per_batch, ViewKey};
-use crate::volume::{confine, Limits, Stats, Volume, VolumeHeader, VolumeIdentity};
+use crate::render::{Film, View};
+use crate::scene::Scene;
+use crate::views::ViewKey;
+use crate::volume::{confine, Limits, Volume};
 
 /// Reports progress in units of finished (pass, frame) images.
 pub trait Progress: Sync {

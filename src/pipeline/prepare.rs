@@ -1,6 +1,10 @@
 //! The value normalisation of a run: the scene's window, or the data's range.
 
-use super::*;
+use crate::error::Error;
+use crate::output::display::Window;
+use crate::sample::Normalize;
+use crate::scene::Scene;
+use crate::volume::{Stats, Volume};
 
 /// The normalisation of the scene's value window, or of the data's finite range.
 /// Both are in the volume's physical values (its [`Rescale`](crate::volume::Rescale)

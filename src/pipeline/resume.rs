@@ -2,7 +2,19 @@
 //! the voxels they were rendered from, and what a run does once its images are
 //! written: merge the manifest, assemble the animations, write the turntable page.
 
-use super::*;
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use serde_json::json;
+
+use super::Summary;
+use crate::error::Error;
+use crate::output::manifest::{self, FrameRecord, ManifestHead, ManifestStatus};
+use crate::output::{animation, frame_path, viewer};
+use crate::plan::Plan;
+use crate::scene::{Format, Scene};
+use crate::volume::{VolumeHeader, VolumeIdentity};
 
 /// How many (pass, frame) images of the plan's frames `--resume` would skip, when
 /// that can be told without reading the voxels: `None` when the volume's files

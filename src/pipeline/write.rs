@@ -1,8 +1,16 @@
 //! Laying out, encoding and writing the images of one (pass, frame).
 
-use super::*;
+use std::path::PathBuf;
+
+use super::FrameViews;
+use crate::error::Error;
+use crate::output::display::{to_display, DisplayKind};
+use crate::output::manifest::{self, FileRecord};
 use crate::output::overlay::{self, Colorbar, FrameInfo, Overlay, ScaleBar};
-use crate::scene::{MipOutput, Mode, Projection};
+use crate::output::{encode, frame_path, stereo, Eye};
+use crate::plan::Plan;
+use crate::render::{Film, ImageKind, View};
+use crate::scene::{AnaglyphColors, Format, Layout, MipOutput, Mode, Projection, Scene};
 
 /// Lays out, encodes and writes the images of one (pass, frame); returns each file
 /// with its manifest entry.
