@@ -1,6 +1,17 @@
 //! `[material.NAME]` and `[transfer.NAME]` tables, and the built-in transfer functions.
 
-use super::*;
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::sync::Arc;
+
+use glam::Vec3;
+use toml::Spanned;
+
+use super::Resolver;
+use crate::scene::schema::{MaterialTable, Sp, TransferTable, WidgetTable};
+use crate::scene::{Transfer, Units};
+use crate::shade::Material;
+use crate::transfer::{self, Transfer1D, Transfer2D, Widget, WidgetShape};
 
 impl Resolver<'_> {
     pub(super) fn materials(

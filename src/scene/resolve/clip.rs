@@ -1,7 +1,15 @@
 //! `[[clip]]` planes: a point and a normal in world coordinates, an offset along
 //! the normal, a cap for surface passes, and the passes they apply to.
 
-use super::*;
+use std::collections::BTreeMap;
+use std::ops::Range;
+
+use toml::Spanned;
+
+use super::Resolver;
+use crate::scene::diag::{quoted_list, suggest};
+use crate::scene::schema::ClipTable;
+use crate::scene::{Clip, Mode, RenderPass};
 
 impl Resolver<'_> {
     pub(super) fn clips(

@@ -1,7 +1,15 @@
 //! `[[keyframe]]` tables: per frame, camera values and pass and clip values as
 //! dotted keys (`render.NAME.iso`, `render.NAME.threshold`, `clip.NAME.offset`).
 
-use super::*;
+use std::collections::BTreeMap;
+use std::ops::Range;
+
+use toml::Spanned;
+
+use super::Resolver;
+use crate::scene::diag::{quoted_list, suggest};
+use crate::scene::schema::{KeyframeTable, OrbitTable, Sp};
+use crate::scene::{Channel, Clip, Keyframes, Mode, Orbit, OrbitPath, RenderPass};
 
 /// A camera key of a keyframe: its name, value, test and what it expects.
 type CameraCheck<'a> = (&'a str, &'a Sp<f64>, &'a dyn Fn(f64) -> bool, &'a str);

@@ -1,7 +1,11 @@
 //! `[[label]]` tables and the overlays of `[image]`: what is drawn into PNG frames.
 
-use super::*;
+use toml::Spanned;
+
+use super::Resolver;
 use crate::output::overlay::{self, Label, Position};
+use crate::scene::schema::LabelTable;
+use crate::scene::{Format, ImageSpec, RenderPass};
 
 impl Resolver<'_> {
     pub(super) fn labels(

@@ -13,23 +13,15 @@ mod passes;
 mod view;
 mod volume;
 
-use std::collections::BTreeMap;
 use std::ops::Range;
-use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::path::Path;
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 use toml::Spanned;
 
 use super::diag::{quoted_list, suggest, with_suggestion, Diagnostic, SceneError};
-use super::schema::*;
-use super::*;
-use crate::sample::{GradientMethod, Interpolation};
-use crate::shade::{Material, Model};
-use crate::transfer::{self, Transfer1D, Transfer2D, Widget, WidgetShape};
-use crate::volume::raw::RawSpec;
-use crate::volume::synthetic::Field;
-use crate::volume::{ScalarType, Synthetic, VolumeSource};
+use super::schema::{SceneFile, Sp};
+use super::{Scene, Units};
 
 struct Resolver<'a> {
     diags: Vec<Diagnostic>,

@@ -1,6 +1,20 @@
 //! `[[render]]` passes: modes, their keys, methods and shading.
 
-use super::*;
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::sync::Arc;
+
+use toml::Spanned;
+
+use super::Resolver;
+use crate::sample::{GradientMethod, Interpolation};
+use crate::scene::diag::{quoted_list, suggest};
+use crate::scene::schema::RenderTable;
+use crate::scene::{
+    Integration, MipOutput, Mode, RenderPass, Shading, Transfer, Units, XrayOutput,
+};
+use crate::shade::{Material, Model};
+use crate::transfer;
 
 /// Which render modes use each mode-specific key of `[[render]]`.
 const MODE_KEYS: &[(&str, &[&str])] = &[

@@ -1,7 +1,22 @@
 //! `[camera]`, `[orbit]`, `[image]`, `[stereo]`, `[animation]`, `[viewer]` and
 //! `[light]`.
 
-use super::*;
+use std::ops::Range;
+use std::path::PathBuf;
+
+use glam::DVec3;
+use toml::Spanned;
+
+use super::Resolver;
+use crate::scene::schema::{
+    AnimationTable, CameraTable, ImageTable, LightTable, OrbitTable, StereoTable, ViewerTable,
+    ZoomValue,
+};
+use crate::scene::{
+    Anaglyph, AnaglyphColors, Animation, AnimationFormat, Camera, Format, ImageSpec, Layout,
+    LightKindSpec, LightSpec, Orbit, OrbitPath, Projection, Separation, Stereo, StereoMethod,
+    ZoomFit,
+};
 
 /// Largest image side accepted.
 const MAX_IMAGE_SIDE: i64 = 32768;

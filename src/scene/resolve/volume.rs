@@ -1,10 +1,21 @@
 //! `[volume]`: a volume file (NRRD, NIfTI, MetaImage), a DICOM folder, a raw file or a
 //! synthetic field, its window and crop.
 
-use super::*;
+use std::ops::Range;
+use std::path::PathBuf;
+
+use toml::Spanned;
+
+use super::Resolver;
+use crate::scene::diag::{quoted_list, suggest};
+use crate::scene::schema::{Sp, VolumeTable};
+use crate::scene::{Units, VolumeSpec};
 use crate::volume::dicom::DicomSpec;
 use crate::volume::nifti::NiftiSpec;
+use crate::volume::raw::RawSpec;
+use crate::volume::synthetic::Field;
 use crate::volume::FileFormat;
+use crate::volume::{ScalarType, Synthetic, VolumeSource};
 
 /// The format of a volume file, from `format` or the file's name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
