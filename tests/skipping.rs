@@ -1,8 +1,9 @@
 //! Empty-space skipping changes no pixel (issue 7, item 2): every mode, filter and
 //! integration method rendered with and without skipping gives the same bits, and
 //! skipping does skip. So does the sampler's other shortcut, float32 voxels read
-//! without their clamp when all lie in the window [0, 1] (the last test). The volume is three blobs in air (a CT-like layout), stored as
-//! uint8, int16 and float32, seen from several sides, orthographic and perspective.
+//! without their clamp when all lie in the window [0, 1] (the last test). The
+//! volume is three blobs in air (a CT-like layout), stored as uint8, int16 and
+//! float32, seen from several sides, orthographic and perspective.
 
 use std::path::{Path, PathBuf};
 

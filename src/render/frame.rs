@@ -336,6 +336,26 @@ mod tests {
         (n, v)
     }
 
+    /// The field of voxels `v` (`n` of them, normalised over [0, 1]) sampled with
+    /// `interpolation`, `m` taking world to index coordinates.
+    fn blob_field<'a>(
+        v: &'a [f32],
+        n: [usize; 3],
+        m: glam::DMat3,
+        interpolation: Interpolation,
+    ) -> Sampler<'a, f32> {
+        Sampler::new(
+            v,
+            n,
+            Normalize::new(0.0, 1.0),
+            interpolation,
+            None,
+            GradientMethod::Central,
+            None,
+            m,
+        )
+    }
+
     /// The frame of a volume of `n` voxels with unequal spacings, and the views the
     /// windowed-walk tests render: orthographic ones, a perspective one, the same
     /// off axis, and one from inside the volume (the last).
@@ -369,16 +389,7 @@ mod tests {
         let grid = MacroGrid::from_values(n, Support::Linear, |i| v[i]);
         let octants = MacroGrid::from_values(n, Support::LinearOctants, |i| v[i]);
         let (frame, views, m) = window_test_views(n);
-        let field = Sampler::new(
-            &v,
-            n,
-            Normalize::new(0.0, 1.0),
-            Interpolation::Trilinear,
-            None,
-            GradientMethod::Central,
-            None,
-            m,
-        );
+        let field = blob_field(&v, n, m, Interpolation::Trilinear);
         let xray = Xray {
             output: XrayOutput::Integral,
             mu: 1.0,
@@ -426,16 +437,7 @@ mod tests {
             let grid = MacroGrid::from_values(n, Support::Linear, |i| v[i]);
             let (frame, views, m) = window_test_views(n);
             for interpolation in [Interpolation::Trilinear, Interpolation::Nearest] {
-                let field = Sampler::new(
-                    &v,
-                    n,
-                    Normalize::new(0.0, 1.0),
-                    interpolation,
-                    None,
-                    GradientMethod::Central,
-                    None,
-                    m,
-                );
+                let field = blob_field(&v, n, m, interpolation);
                 let mip = Kernel::new(&field, Mip, Some(&grid), 0.37, None, &[]);
                 let minip = Kernel::new(&field, Minip, Some(&grid), 0.37, None, &[]);
                 let every = Kernel::new(&field, Mip, None, 0.37, None, &[]);

@@ -22,8 +22,8 @@ use glam::DMat3;
 use super::clip::ClipPlane;
 use super::frame::{Kernel, RenderView};
 use super::integrator::{
-    Average, Composite, CompositeTable, CuedMip, CuedOutput, Depth, Exact, Lmip, Minip, Mip,
-    Surface, Xray,
+    Average, Composite, CompositeTable, CuedMip, CuedOutput, Depth, Exact, Integrand, Lmip, Minip,
+    Mip, Surface, Xray,
 };
 use super::skip::{MacroGrid, Support};
 use crate::sample::{
@@ -456,7 +456,8 @@ impl RenderPass {
                     "cells that cannot beat the running maximum, walking only where cells are not all zero"
                 }
                 (ModeSpec::Exact(Exact::Mip), _) => "cells that cannot beat the running maximum",
-                (ModeSpec::Lmip(l), _) if l.threshold > 0.0 => {
+                // as its windows are (zero cells, for a threshold above zero)
+                (ModeSpec::Lmip(l), _) if l.window_passes(0, [0.0; 2]).is_some() => {
                     "cells that cannot reach the threshold, walking only where cells are not all zero"
                 }
                 (ModeSpec::CuedMip(_) | ModeSpec::Exact(Exact::CuedMip(_)), _) => {
