@@ -340,31 +340,48 @@ unsafe fn interpolate(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m1
 
 #[cfg(test)]
 mod tests {
-    use super::super::{normalisation_table, CellCache, Grid};
+    use super::super::{bits_table, normalisation_table, CellCache, Grid};
     use super::Gather;
     use crate::sample::Normalize;
-    use crate::volume::{Voxel, Voxels};
+    use crate::volume::{ScalarType, Voxel, Voxels};
+
+    /// How a test grid reads its voxels.
+    #[derive(Clone, Copy, PartialEq)]
+    enum Read {
+        /// As their type says.
+        Plain,
+        /// Told that they lie in [0, 1] ([`Grid::with_unit_voxels`]).
+        Bare,
+        /// 8- or 16-bit voxels as the bits of signed data ([`Grid::signed_bits`]).
+        Signed,
+    }
 
     /// Samples along random rays (inside, across and outside the grid, with NaN and
     /// out-of-window voxels, on grids whose last row ends the data) taken four (AVX2)
     /// or eight (AVX-512) at a time have the bits of one sample at a time, for each
     /// voxel type the vector paths read.
-    /// `bare`: the grid is told its voxels lie in [0, 1] ([`Grid::with_unit_voxels`]).
     fn along_is_one_at_a_time<T: Voxel>(
         voxel: impl Fn(usize) -> T,
         norm: Normalize,
         expect: Option<Gather>,
-        bare: bool,
+        read: Read,
     ) {
         // calls of the AVX2 and of the AVX-512 path (0 where the machine lacks one)
         let mut paths = [0usize; 2];
         for n in [[9, 8, 7], [2, 3, 2], [5, 1, 4], [3, 4, 1], [2, 2, 1]] {
             let len = n[0] * n[1] * n[2];
             let v: Vec<T> = (0..len).map(&voxel).collect();
-            let lut = normalisation_table::<T>(norm);
+            let lut = if read == Read::Signed {
+                let ty = [ScalarType::Int8, ScalarType::Int16][usize::from(T::LUT_SIZE > 256)];
+                bits_table(ty, norm).expect("8- or 16-bit")
+            } else {
+                normalisation_table::<T>(norm)
+            };
             let mut g = Grid::new(Voxels::from_slice(&v), n, norm, &lut);
-            if bare {
-                g = g.with_unit_voxels();
+            match read {
+                Read::Plain => {}
+                Read::Bare => g = g.with_unit_voxels(),
+                Read::Signed => g = g.signed_bits(),
             }
             if std::is_x86_feature_detected!("avx2") {
                 assert_eq!(g.gather, expect, "{n:?}");
@@ -432,13 +449,13 @@ mod tests {
     #[test]
     fn float32_samples_along_a_ray_are_the_single_samples() {
         let norm = Normalize::new(-0.1, 1.2);
-        along_is_one_at_a_time(float, norm, Some(Gather::Float32), false);
+        along_is_one_at_a_time(float, norm, Some(Gather::Float32), Read::Plain);
     }
 
     #[test]
     fn float32_samples_in_the_unit_window_are_the_single_samples() {
         let norm = Normalize::new(0.0, 1.0);
-        along_is_one_at_a_time(float, norm, Some(Gather::Float32Unit), false);
+        along_is_one_at_a_time(float, norm, Some(Gather::Float32Unit), Read::Plain);
     }
 
     /// float32 voxels all in [0, 1], zeros of both signs and both ends among them.
@@ -456,26 +473,53 @@ mod tests {
     fn unit_voxels_read_bare_are_the_single_samples() {
         // read as they are, without the clamp: the bits of the clamped single samples
         let norm = Normalize::new(0.0, 1.0);
-        along_is_one_at_a_time(unit, norm, Some(Gather::Float32Bare), true);
+        along_is_one_at_a_time(unit, norm, Some(Gather::Float32Bare), Read::Bare);
         // and only in the unit window: any other stays as it was
         let norm = Normalize::new(-0.1, 1.2);
-        along_is_one_at_a_time(unit, norm, Some(Gather::Float32), true);
+        along_is_one_at_a_time(unit, norm, Some(Gather::Float32), Read::Bare);
+    }
+
+    /// Windows of 8- and 16-bit data: inside the values, around them, decreasing
+    /// (a negative rescale slope), and narrower than a step of the values.
+    fn windows(max: f64) -> [Normalize; 5] {
+        [
+            Normalize::new(-0.1, max - 5.0),
+            Normalize::new(0.0, max),
+            Normalize::new(-max - 1.0, 2.0 * max),
+            Normalize::new(max * 0.7, max * 0.2),
+            Normalize::new(3.0, 3.0 + 1e-9),
+        ]
     }
 
     #[test]
     fn uint8_samples_along_a_ray_are_the_single_samples() {
-        let norm = Normalize::new(-0.1, 250.0);
-        along_is_one_at_a_time(|i| (i * 53 % 256) as u8, norm, Some(Gather::Bits8), false);
+        for norm in windows(255.0) {
+            let voxel = |i: usize| (i * 53 % 256) as u8;
+            along_is_one_at_a_time(voxel, norm, Some(Gather::Bits8), Read::Plain);
+        }
+    }
+
+    #[test]
+    fn int8_samples_along_a_ray_are_the_single_samples() {
+        for norm in windows(127.0) {
+            let voxel = |i: usize| (i * 53 % 256) as u8;
+            along_is_one_at_a_time(voxel, norm, Some(Gather::Bits8), Read::Signed);
+        }
     }
 
     #[test]
     fn uint16_samples_along_a_ray_are_the_single_samples() {
-        let norm = Normalize::new(100.0, 60000.0);
-        along_is_one_at_a_time(
-            |i| (i * 4099 % 65536) as u16,
-            norm,
-            Some(Gather::Bits16),
-            false,
-        );
+        for norm in windows(65535.0) {
+            let voxel = |i: usize| (i * 4099 % 65536) as u16;
+            along_is_one_at_a_time(voxel, norm, Some(Gather::Bits16), Read::Plain);
+        }
+    }
+
+    #[test]
+    fn int16_samples_along_a_ray_are_the_single_samples() {
+        for norm in windows(32767.0) {
+            let voxel = |i: usize| (i * 4099 % 65536) as u16;
+            along_is_one_at_a_time(voxel, norm, Some(Gather::Bits16), Read::Signed);
+        }
     }
 }
