@@ -25,6 +25,7 @@ use crate::output::Eye;
 use crate::render::footprint::Footprint;
 use crate::render::pass::GridSource;
 use crate::render::{ImageKind, IndexFrame, RenderPass};
+use crate::sample::PAIR_TABLE_BYTES;
 use crate::scene::{Format, Layout, LightKindSpec, MipOutput, Mode, OrbitPath, Scene, Units};
 use crate::shade::{Light, LightKind};
 use crate::volume::{human_bytes, VolumeHeader};
@@ -264,7 +265,12 @@ impl Plan {
         let mut grids: Vec<GridSource> = passes.iter().filter_map(|p| p.needs().grid).collect();
         grids.sort();
         grids.dedup();
-        let lut_bytes = header.scalar_type.lut_size() as u64 * 4;
+        let pair_bytes = if passes.iter().any(|p| p.needs().voxel_pairs) {
+            PAIR_TABLE_BYTES
+        } else {
+            0
+        };
+        let lut_bytes = header.scalar_type.lut_size() as u64 * 4 + pair_bytes;
         let threads = opts
             .threads
             .unwrap_or_else(rayon::current_num_threads)

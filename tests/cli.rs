@@ -124,6 +124,9 @@ fn check_prints_the_plan_and_writes_nothing() {
         out.contains("empty-space skipping") && out.contains("transfer function is transparent"),
         "{out}"
     );
+    // its 8-bit voxels are read in pairs where the machine's vector paths do so
+    let pairs = "8-bit voxels read two at a time through a table of normalised pairs (512.0 KiB)";
+    assert_eq!(out.contains(pairs), volcast::sample::reads_pairs(), "{out}");
     // a MIP computes neither gradients nor tables, skips cells that cannot beat its
     // maximum and walks only where cells are not all zero, and says so; --no-skip
     // takes the grid away
@@ -134,9 +137,18 @@ fn check_prints_the_plan_and_writes_nothing() {
         !out.contains("gradient") && !out.contains("transfer table"),
         "{out}"
     );
+    assert_eq!(out.contains(pairs), volcast::sample::reads_pairs(), "{out}");
     assert!(
         out.contains("cannot beat the running maximum, walking only where cells are not all zero"),
         "{out}"
+    );
+    // 16-bit voxels (and cubic interpolation) need no table of pairs
+    let skull = root().join("scenes/golden_skull.toml");
+    let o = volcast(tmp.path(), &["check", skull.to_str().unwrap()]);
+    let skull_out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && !skull_out.contains("normalised pairs"),
+        "{skull_out}"
     );
     let o = volcast(tmp.path(), &["check", scene.to_str().unwrap(), "--no-skip"]);
     let out = String::from_utf8_lossy(&o.stdout);

@@ -27,8 +27,9 @@ use super::integrator::{
 };
 use super::skip::{MacroGrid, Support};
 use crate::sample::{
-    bits_table, gradient_volume_normalised, prefilter_normalised, BSpline, Cubic, Field,
-    GradientMethod, Gradients, Grid, Interpolation, Nearest, Normalize, Trilinear,
+    bits_table, gradient_volume_normalised, pair_table, prefilter_normalised, reads_pairs, BSpline,
+    Cubic, Field, GradientMethod, Gradients, Grid, Interpolation, Nearest, Normalize, Trilinear,
+    PAIR_TABLE_BYTES,
 };
 use crate::scene::{Integration, MipOutput, Mode, Transfer};
 use crate::shade::{Light, Shader};
@@ -69,6 +70,10 @@ pub struct Needs {
     pub coefficients: bool,
     /// A macrocell grid for empty-space skipping.
     pub grid: Option<GridSource>,
+    /// The table of normalised pairs of 8-bit voxels (512 KiB), which the vector
+    /// paths of trilinear passes over 8-bit data read on machines that have them
+    /// ([`reads_pairs`]).
+    pub voxel_pairs: bool,
 }
 
 /// What a pass's films hold, for display.
@@ -289,6 +294,9 @@ impl RenderPass {
                 gradient_volume,
                 coefficients: interpolation == Interpolation::Cubic,
                 grid,
+                voxel_pairs: interpolation == Interpolation::Trilinear
+                    && matches!(scalar_type, ScalarType::Uint8 | ScalarType::Int8)
+                    && reads_pairs(),
             },
             scalar_type,
             clips: Vec::new(),
@@ -425,6 +433,12 @@ impl RenderPass {
         if self.needs.coefficients {
             needs.push("prefiltered cubic coefficients".into());
         }
+        if self.needs.voxel_pairs {
+            needs.push(format!(
+                "8-bit voxels read two at a time through a table of normalised pairs ({})",
+                human_bytes(PAIR_TABLE_BYTES)
+            ));
+        }
         if let ModeSpec::Composite {
             transfer_name,
             transfer,
@@ -543,7 +557,7 @@ impl RenderPass {
             _ => res.data.voxels::<T>(),
         }
         .expect("the volume has the type its header announced");
-        let grid = Grid::new(voxels, res.sizes, res.norm, &res.lut);
+        let grid = Grid::new(voxels, res.sizes, res.norm, &res.lut).with_pairs(&res.pairs);
         match self.scalar_type {
             ScalarType::Int8 | ScalarType::Int16 => grid.signed_bits(),
             ScalarType::Float32 if res.unit_voxels() => grid.with_unit_voxels(),
@@ -678,6 +692,8 @@ pub struct Resources<'v> {
     sizes: [usize; 3],
     norm: Normalize,
     lut: Vec<f32>,
+    /// The [`pair_table`] of `lut`, where a pass needs it (else empty).
+    pairs: Vec<[f32; 2]>,
     coefficients: Option<Vec<f32>>,
     gradients: Vec<(GradientMethod, Vec<[f32; 3]>)>,
     grids: Vec<(GridSource, MacroGrid)>,
@@ -745,6 +761,7 @@ impl<'v> Resources<'v> {
     /// Bytes held (tables, coefficients, gradient volumes, grids).
     pub fn bytes(&self) -> u64 {
         (std::mem::size_of_val(self.lut.as_slice())
+            + std::mem::size_of_val(self.pairs.as_slice())
             + self
                 .coefficients
                 .as_ref()
@@ -818,11 +835,17 @@ fn build_typed<'v, T: Voxel>(
             (s, g)
         })
         .collect();
+    let pairs = if needs.iter().any(|n| n.voxel_pairs) {
+        pair_table(&lut)
+    } else {
+        Vec::new()
+    };
     Resources {
         data,
         sizes,
         norm,
         lut,
+        pairs,
         coefficients,
         gradients,
         grids,

@@ -51,9 +51,35 @@ pub fn bits_table(ty: ScalarType, norm: Normalize) -> Option<Vec<f32>> {
     })
 }
 
+/// Bytes of a [`pair_table`].
+pub const PAIR_TABLE_BYTES: u64 = (1 << 16) * 8;
+
+/// The normalised values of two adjacent 8-bit voxels for every 16-bit word they
+/// make in memory (the first voxel in the low byte): `[lut[w & 0xff], lut[w >> 8]]`
+/// for each word `w`, from a 256-entry table `lut` ([`bits_table`] or
+/// [`normalisation_table`]). The vector paths read a cell row's two voxels as one
+/// word and take both values with one load ([`Grid::with_pairs`]), as they read
+/// two float32 voxels; 512 KiB ([`PAIR_TABLE_BYTES`]).
+pub fn pair_table(lut: &[f32]) -> Vec<[f32; 2]> {
+    assert_eq!(lut.len(), 256, "a table of 8-bit values");
+    (0..1usize << 16)
+        .map(|w| [lut[w & 0xff], lut[w >> 8]])
+        .collect()
+}
+
+/// Whether this machine's vector paths read 8-bit voxels through a [`pair_table`]
+/// (x86-64 with AVX2): where they do not, none needs to be built.
+pub fn reads_pairs() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return std::is_x86_feature_detected!("avx2");
+    #[cfg(not(target_arch = "x86_64"))]
+    return false;
+}
+
 /// Native-typed voxels read as normalised values in [0, 1]: the voxels, the grid's
 /// sizes and strides, and the value window (a table load per voxel for 8- and
-/// 16-bit data, see [`normalisation_table`]).
+/// 16-bit data, see [`normalisation_table`]; on the vector paths, one per two 8-bit
+/// voxels with a [`pair_table`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Grid<'a, T: Voxel> {
     voxels: Voxels<'a, T>,
@@ -87,6 +113,9 @@ pub struct Grid<'a, T: Voxel> {
     /// machine has AVX-512.
     #[cfg(target_arch = "x86_64")]
     wide: bool,
+    /// The [`pair_table`] of `lut` for 8-bit voxels ([`Grid::with_pairs`]), or empty.
+    #[cfg(target_arch = "x86_64")]
+    pairs: &'a [[f32; 2]],
 }
 
 /// The normalised corners of the cell a ray sampled last (see
@@ -157,7 +186,31 @@ impl<'a, T: Voxel> Grid<'a, T> {
             gather,
             #[cfg(target_arch = "x86_64")]
             wide: gather.is_some() && avx512::available(),
+            #[cfg(target_arch = "x86_64")]
+            pairs: &[],
         }
+    }
+
+    /// The grid of 8-bit voxels with the [`pair_table`] of its normalisation table:
+    /// its vector paths then read each row's two voxels with one table load rather
+    /// than two (the same values, so the same bits). Any other grid, or an empty
+    /// table, leaves the grid as it was.
+    pub fn with_pairs(self, pairs: &'a [[f32; 2]]) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if self.gather == Some(avx2::Gather::Bits8) && pairs.len() == 1 << 16 {
+            debug_assert!(pairs
+                .iter()
+                .enumerate()
+                .all(|(w, p)| p[0].to_bits() == self.lut[w & 0xff].to_bits()
+                    && p[1].to_bits() == self.lut[w >> 8].to_bits()));
+            return Grid {
+                pairs,
+                gather: Some(avx2::Gather::Bits8Pairs),
+                ..self
+            };
+        }
+        let _ = pairs;
+        self
     }
 
     /// The grid, told that every voxel lies in [0, 1] (no NaN) while the window is

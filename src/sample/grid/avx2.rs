@@ -30,6 +30,10 @@ pub(super) enum Gather {
     Float32Bare,
     /// 8-bit voxels read as `u8` bits, normalised by the table.
     Bits8,
+    /// 8-bit voxels read two at a time, as the 16-bit word they make, normalised by
+    /// the table of pairs ([`Grid::with_pairs`](super::Grid::with_pairs)): as
+    /// [`Gather::Bits8`], with one table load per row of a cell rather than two.
+    Bits8Pairs,
     /// 16-bit voxels read as `u16` bits, normalised by the table.
     Bits16,
 }
@@ -68,12 +72,15 @@ impl Gather {
     }
 }
 
-/// How the float32 paths normalise a row's voxels (their const parameter): in f64
-/// lanes ([`Gather::Float32`]), by clamping ([`Gather::Float32Unit`]), or not at all
-/// ([`Gather::Float32Bare`]).
+/// How the paths that read a row's two voxels as one 64-bit word get that word and
+/// normalise its voxels (their const parameter): two float32 voxels normalised in
+/// f64 lanes ([`Gather::Float32`]), by clamping ([`Gather::Float32Unit`]) or not at
+/// all ([`Gather::Float32Bare`]), or the normalised pair of two 8-bit voxels from
+/// the table of pairs ([`Gather::Bits8Pairs`]).
 pub(super) const ROW_GENERAL: u8 = 0;
 pub(super) const ROW_UNIT: u8 = 1;
 pub(super) const ROW_BARE: u8 = 2;
+pub(super) const ROW_PAIRS: u8 = 3;
 
 /// What the vector paths broadcast into their lanes for one call.
 pub(super) struct LaneConstants {
@@ -171,6 +178,10 @@ impl<T: Voxel> Grid<'_, T> {
                     let c = each_row!(self.row_bits::<1>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
+                Gather::Bits8Pairs => {
+                    let c = each_row!(self.row_f32::<ROW_PAIRS>, _mm256_add_epi64, base, rows);
+                    interpolate(c, fx, fy, fz)
+                }
             };
             _mm_storeu_ps(out.as_mut_ptr().add(4 * g), sample);
         }
@@ -180,22 +191,29 @@ impl<T: Voxel> Grid<'_, T> {
         }
     }
 
-    /// The normalised float32 voxels at flat indices `at` and `at + 1` of each lane:
-    /// (voxel `at` of lanes 0..4, voxel `at + 1` of lanes 0..4), normalised as
-    /// `KIND` says ([`ROW_GENERAL`], [`ROW_UNIT`], [`ROW_BARE`]).
+    /// The normalised voxels at flat indices `at` and `at + 1` of each lane:
+    /// (voxel `at` of lanes 0..4, voxel `at + 1` of lanes 0..4): float32 voxels
+    /// normalised as `KIND` says ([`ROW_GENERAL`], [`ROW_UNIT`], [`ROW_BARE`]), or
+    /// 8-bit ones through the table of pairs ([`ROW_PAIRS`]).
     #[target_feature(enable = "avx2")]
     #[inline]
     unsafe fn row_f32<const KIND: u8>(&self, at: __m256i) -> (__m128, __m128) {
         // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
-        // voxel; each lane reads the two adjacent float32 as one 64-bit word
+        // voxel; each lane reads the two adjacent voxels as one word
         let at: [i64; 4] = std::mem::transmute(at);
-        let w = |k: usize| f32_pair(self.voxels.as_ptr().cast(), at[k]);
+        let w = |k: usize| {
+            if KIND == ROW_PAIRS {
+                self.pair_word(at[k])
+            } else {
+                f32_pair(self.voxels.as_ptr().cast(), at[k])
+            }
+        };
         let pairs = _mm256_castsi256_ps(_mm256_set_epi64x(w(3), w(2), w(1), w(0)));
         let lo = _mm256_castps256_ps128(pairs); // a0 b0 a1 b1
         let hi = _mm256_extractf128_ps::<1>(pairs); // a2 b2 a3 b3
         let a = _mm_shuffle_ps::<0b10_00_10_00>(lo, hi);
         let b = _mm_shuffle_ps::<0b11_01_11_01>(lo, hi);
-        if KIND == ROW_BARE {
+        if KIND == ROW_BARE || KIND == ROW_PAIRS {
             return (a, b);
         }
         if KIND == ROW_UNIT {
@@ -225,6 +243,32 @@ impl<T: Voxel> Grid<'_, T> {
         // voxel
         let [a, b] = self.row_bits_lanes::<BYTES, 4>(at);
         (_mm_loadu_ps(a.as_ptr()), _mm_loadu_ps(b.as_ptr()))
+    }
+
+    /// The normalised 8-bit voxels at flat indices `at` and `at + 1`, as one 64-bit
+    /// word (the first in the low half): the entry of the table of pairs
+    /// ([`Gather::Bits8Pairs`]) for the 16-bit word the two voxels make.
+    ///
+    /// # Safety
+    /// Voxels `at` and `at + 1` are in the grid, whose voxels are 8-bit and whose
+    /// table of pairs has 2^16 entries.
+    #[inline(always)]
+    pub(super) unsafe fn pair_word(&self, at: i64) -> i64 {
+        debug_assert_eq!(self.pairs.len(), 1 << 16);
+        let word = self
+            .voxels
+            .as_ptr()
+            .cast::<u8>()
+            .add(at as usize)
+            .cast::<u16>()
+            .read_unaligned();
+        // SAFETY: a 16-bit word indexes the table's 2^16 entries; an entry is two
+        // f32 (8 bytes, aligned to 4)
+        self.pairs
+            .as_ptr()
+            .add(usize::from(u16::from_le(word)))
+            .cast::<i64>()
+            .read_unaligned()
     }
 
     /// The normalised 8- or 16-bit voxels (`BYTES` per voxel) at flat indices `at`
@@ -340,7 +384,7 @@ unsafe fn interpolate(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m1
 
 #[cfg(test)]
 mod tests {
-    use super::super::{bits_table, normalisation_table, CellCache, Grid};
+    use super::super::{bits_table, normalisation_table, pair_table, CellCache, Grid};
     use super::Gather;
     use crate::sample::Normalize;
     use crate::volume::{ScalarType, Voxel, Voxels};
@@ -354,6 +398,10 @@ mod tests {
         Bare,
         /// 8- or 16-bit voxels as the bits of signed data ([`Grid::signed_bits`]).
         Signed,
+        /// 8-bit voxels through the table of pairs ([`Grid::with_pairs`]).
+        Pairs,
+        /// Both: signed 8-bit data through its table of pairs.
+        SignedPairs,
     }
 
     /// Samples along random rays (inside, across and outside the grid, with NaN and
@@ -371,17 +419,24 @@ mod tests {
         for n in [[9, 8, 7], [2, 3, 2], [5, 1, 4], [3, 4, 1], [2, 2, 1]] {
             let len = n[0] * n[1] * n[2];
             let v: Vec<T> = (0..len).map(&voxel).collect();
-            let lut = if read == Read::Signed {
+            let lut = if matches!(read, Read::Signed | Read::SignedPairs) {
                 let ty = [ScalarType::Int8, ScalarType::Int16][usize::from(T::LUT_SIZE > 256)];
                 bits_table(ty, norm).expect("8- or 16-bit")
             } else {
                 normalisation_table::<T>(norm)
+            };
+            let pairs = if T::LUT_SIZE == 256 {
+                pair_table(&lut)
+            } else {
+                Vec::new()
             };
             let mut g = Grid::new(Voxels::from_slice(&v), n, norm, &lut);
             match read {
                 Read::Plain => {}
                 Read::Bare => g = g.with_unit_voxels(),
                 Read::Signed => g = g.signed_bits(),
+                Read::Pairs => g = g.with_pairs(&pairs),
+                Read::SignedPairs => g = g.signed_bits().with_pairs(&pairs),
             }
             if std::is_x86_feature_detected!("avx2") {
                 assert_eq!(g.gather, expect, "{n:?}");
@@ -496,6 +551,7 @@ mod tests {
         for norm in windows(255.0) {
             let voxel = |i: usize| (i * 53 % 256) as u8;
             along_is_one_at_a_time(voxel, norm, Some(Gather::Bits8), Read::Plain);
+            along_is_one_at_a_time(voxel, norm, Some(Gather::Bits8Pairs), Read::Pairs);
         }
     }
 
@@ -504,6 +560,8 @@ mod tests {
         for norm in windows(127.0) {
             let voxel = |i: usize| (i * 53 % 256) as u8;
             along_is_one_at_a_time(voxel, norm, Some(Gather::Bits8), Read::Signed);
+            let pairs = Some(Gather::Bits8Pairs);
+            along_is_one_at_a_time(voxel, norm, pairs, Read::SignedPairs);
         }
     }
 

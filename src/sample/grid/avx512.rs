@@ -7,7 +7,7 @@
 
 use std::arch::x86_64::*;
 
-use super::avx2::{f32_pair, Gather, LaneConstants, ROW_BARE, ROW_GENERAL, ROW_UNIT};
+use super::avx2::{f32_pair, Gather, LaneConstants, ROW_BARE, ROW_GENERAL, ROW_PAIRS, ROW_UNIT};
 use super::Grid;
 use crate::volume::Voxel;
 
@@ -148,16 +148,22 @@ impl<T: Voxel> Grid<'_, T> {
                     let c = each_row!(self.row_bits_x8::<1>, _mm512_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
+                Gather::Bits8Pairs => {
+                    let corners = self.rows_f32_x8::<ROW_PAIRS>(base, c.rows);
+                    interpolate(corners, fx, fy, fz)
+                }
             };
             _mm256_storeu_ps(out.as_mut_ptr().add(at), sample);
         }
     }
 
-    /// The normalised float32 voxels of the four rows of each of eight lanes'
-    /// cells: row `r` of the lane whose cell starts at flat index `base` holds
-    /// voxels `base + rows[r]` and the one after it. The lanes' cell starts are
-    /// read out once, and each row's voxels through a pointer to that row's
-    /// offset (one load per lane and row, the offset in the address).
+    /// The normalised voxels of the four rows of each of eight lanes' cells: row
+    /// `r` of the lane whose cell starts at flat index `base` holds voxels
+    /// `base + rows[r]` and the one after it, float32 voxels normalised as `KIND`
+    /// says or 8-bit ones through the table of pairs ([`ROW_PAIRS`]). The lanes'
+    /// cell starts are read out once, and each row's float32 voxels through a
+    /// pointer to that row's offset (one load per lane and row, the offset in the
+    /// address).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
     unsafe fn rows_f32_x8<const KIND: u8>(
@@ -170,8 +176,19 @@ impl<T: Voxel> Grid<'_, T> {
         // SAFETY (the caller's): every `base + rows[r]` is a cell's row start, so
         // it and the voxel after it are in the data
         let row = |r: usize| {
-            let p = data.offset(rows[r] as isize);
-            let w = |k: usize| f32_pair(p, base[k]);
+            // (8-bit voxels read through the table of pairs do not use it)
+            let p = if KIND == ROW_PAIRS {
+                data
+            } else {
+                data.offset(rows[r] as isize)
+            };
+            let w = |k: usize| {
+                if KIND == ROW_PAIRS {
+                    self.pair_word(base[k] + rows[r])
+                } else {
+                    f32_pair(p, base[k])
+                }
+            };
             self.row_f32_x8::<KIND>(_mm512_set_epi64(
                 w(7),
                 w(6),
@@ -186,16 +203,18 @@ impl<T: Voxel> Grid<'_, T> {
         [row(0), row(1), row(2), row(3)]
     }
 
-    /// The normalised float32 voxels of eight lanes from `pairs`, each lane two
-    /// adjacent voxels as one 64-bit word (the first in the low half), normalised
-    /// as `KIND` says (`avx2.rs`: [`ROW_GENERAL`], [`ROW_UNIT`], [`ROW_BARE`]).
+    /// The normalised voxels of eight lanes from `pairs`, each lane two adjacent
+    /// voxels as one 64-bit word (the first in the low half): float32 voxels
+    /// normalised as `KIND` says (`avx2.rs`: [`ROW_GENERAL`], [`ROW_UNIT`],
+    /// [`ROW_BARE`]), or the normalised values from the table of pairs
+    /// ([`ROW_PAIRS`]).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
     unsafe fn row_f32_x8<const KIND: u8>(&self, pairs: __m512i) -> (__m256, __m256) {
         // the low and high halves of each 64-bit element: voxels `at` and `at + 1`
         let a = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(pairs));
         let b = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(_mm512_srli_epi64::<32>(pairs)));
-        if KIND == ROW_BARE {
+        if KIND == ROW_BARE || KIND == ROW_PAIRS {
             return (a, b);
         }
         if KIND == ROW_UNIT {
