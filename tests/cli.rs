@@ -142,6 +142,26 @@ fn check_prints_the_plan_and_writes_nothing() {
         out.contains("cannot beat the running maximum, walking only where cells are not all zero"),
         "{out}"
     );
+    // exact integration reads cells rather than runs of samples: no table of pairs
+    let exact = tmp.path().join("exact.toml");
+    let text = std::fs::read_to_string(&scene)
+        .unwrap()
+        .replace("mode = \"mip\"", "mode = \"mip\"\nintegration = \"exact\"");
+    assert!(text.contains("integration = \"exact\""));
+    std::fs::write(
+        &exact,
+        text.replace("../data/", &format!("{}/data/", root().display())),
+    )
+    .unwrap();
+    let o = volcast(tmp.path(), &["check", exact.to_str().unwrap()]);
+    let exact_out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success()
+            && exact_out.contains("exact integration")
+            && !exact_out.contains("normalised pairs"),
+        "{exact_out}"
+    );
+    std::fs::remove_file(&exact).unwrap();
     // 16-bit voxels (and cubic interpolation) need no table of pairs
     let skull = root().join("scenes/golden_skull.toml");
     let o = volcast(tmp.path(), &["check", skull.to_str().unwrap()]);

@@ -294,7 +294,9 @@ impl RenderPass {
                 gradient_volume,
                 coefficients: interpolation == Interpolation::Cubic,
                 grid,
-                voxel_pairs: interpolation == Interpolation::Trilinear
+                // exact integration reads cells, not runs of samples
+                voxel_pairs: !exact
+                    && interpolation == Interpolation::Trilinear
                     && matches!(scalar_type, ScalarType::Uint8 | ScalarType::Int8)
                     && reads_pairs(),
             },
