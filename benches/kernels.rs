@@ -10,7 +10,7 @@ use volcast::render::march::March;
 use volcast::render::skip::{MacroGrid, Support};
 use volcast::render::IndexFrame;
 use volcast::sample::{
-    bits_table, CellCache, Field, GradientMethod, Gradients, Grid, Normalize, Trilinear,
+    bits_table, pair_table, CellCache, Field, GradientMethod, Gradients, Grid, Normalize, Trilinear,
 };
 use volcast::scene::XrayOutput;
 use volcast::volume::{Geometry, ScalarType, Voxels};
@@ -57,15 +57,20 @@ fn volume() -> Vec<u8> {
 struct Setup {
     data: Vec<u8>,
     lut: Vec<f32>,
+    /// The table of normalised pairs the renderer's trilinear passes over 8-bit data
+    /// read (`Grid::with_pairs`).
+    pairs: Vec<[f32; 2]>,
     frame: IndexFrame,
 }
 
 impl Setup {
     fn new() -> Setup {
         let norm = Normalize::new(0.0, 255.0);
+        let lut = bits_table(ScalarType::Uint8, norm).unwrap();
         Setup {
             data: volume(),
-            lut: bits_table(ScalarType::Uint8, norm).unwrap(),
+            pairs: pair_table(&lut),
+            lut,
             frame: IndexFrame::new([N; 3], None, &Geometry::default(), DMat3::IDENTITY),
         }
     }
@@ -77,7 +82,8 @@ impl Setup {
                 [N; 3],
                 Normalize::new(0.0, 255.0),
                 &self.lut,
-            ),
+            )
+            .with_pairs(&self.pairs),
             gradients: Gradients::new(GradientMethod::Central, None, DMat3::IDENTITY),
         }
     }
