@@ -3,6 +3,7 @@
 repetition), takes medians, compares each peer's image with the reference of the volume it
 read, and writes RESULTS/results.md (table), results.csv and speed_vs_error.png.
 Usage: bench.py --results DIR [--data DIR] [--reps 5] [--peers volcast,vtk,teem,volpack]
+       bench.py --results DIR --peers volcast,vtk --kind u8   (the uint8 volume)
        bench.py --results DIR --plot-only
 (run_all.sh installs the peers, makes the volume and the reference first)."""
 import argparse
@@ -22,15 +23,17 @@ PEERS = ("volcast", "vtk", "teem", "volpack")
 LABEL = {"volcast": "volcast", "volcast-step1": "volcast, step 1 (opt-in)",
          "volcast-pre2": "volcast, step 2 pre-integrated (opt-in)", "vtk": "VTK 9.7.2",
          "teem": "teem 1.12", "volpack": "VolPack 1.0b3", "volpack-raw": "VolPack 1.0b3 (from raw)"}
-INPUT = {"volpack": "u8", "volpack-raw": "u8"}   # every other peer reads the float32 volume
+INPUT = {"volpack": "u8", "volpack-raw": "u8"}   # the others read the float32 volume (--kind u8: uint8)
 
 
-def run_peer(peer, data, images, reps_inside):
+def run_peer(peer, data, images, reps_inside, kind="f32"):
     script = {"volcast": "run_volcast.py", "vtk": "run_vtk.py", "teem": "run_teem.py",
               "volpack": "run_volpack.py"}[peer]
     cmd = [sys.executable, os.path.join(HERE, script), "--data", data, "--out", images]
     if peer in ("vtk", "volpack"):
         cmd += ["--renders", str(reps_inside)]
+    if peer in ("volcast", "vtk") and kind != "f32":
+        cmd += ["--kind", kind]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         print(f"bench: {peer} failed (exit {r.returncode}):\n{r.stderr[-3000:]}", file=sys.stderr)
@@ -38,9 +41,9 @@ def run_peer(peer, data, images, reps_inside):
     return [json.loads(line[7:]) for line in r.stdout.splitlines() if line.startswith("RESULT ")]
 
 
-def error_of(peer, mode, view, images, refs):
+def error_of(peer, mode, view, images, refs, kind="f32"):
     got = C.load_result(images, peer, mode, view)
-    ref = C.load_result(refs, f"ref_{INPUT.get(peer, 'f32')}", mode, view)
+    ref = C.load_result(refs, f"ref_{INPUT.get(peer, kind)}", mode, view)
     return C.errors(mode, got, ref)
 
 
@@ -89,7 +92,13 @@ def main():
     ap.add_argument("--renders", type=int, default=5, help="warm renders per VTK/VolPack call")
     ap.add_argument("--peers", default=",".join(PEERS))
     ap.add_argument("--plot-only", action="store_true", help="redraw the plot from results.csv")
+    ap.add_argument("--kind", choices=("f32", "u8"), default="f32",
+                    help="the volume volcast and VTK read: float32 (the benchmark's, default) or "
+                         "uint8 (round(255 v), the volume of the issue's first measurements; "
+                         "only with --peers volcast,vtk)")
     a = ap.parse_args()
+    if a.kind != "f32" and not set(a.peers.split(",")) <= {"volcast", "vtk"}:
+        ap.error("--kind u8 runs volcast and VTK only (--peers volcast,vtk)")
     if a.plot_only:
         rows = list(csv.DictReader(open(os.path.join(a.results, "results.csv"))))
         for r in rows:
@@ -106,7 +115,7 @@ def main():
         order = peers[rep % len(peers):] + peers[:rep % len(peers)]
         for peer in order:
             start = time.time()
-            got = run_peer(peer, a.data, images, a.renders)
+            got = run_peer(peer, a.data, images, a.renders, a.kind)
             for r in got:
                 r["rep"] = rep
             records += got
@@ -119,7 +128,7 @@ def main():
     secs = {c: statistics.median(t) for c, t in times.items()}
     rows = []
     for peer, mode, view in cases:
-        e = error_of(peer, mode, view, images, refs)
+        e = error_of(peer, mode, view, images, refs, a.kind)
         base = secs.get(("volcast", mode, view))
         rows.append(dict(peer=peer, mode=mode, view=view, seconds=secs[(peer, mode, view)],
                          ratio=secs[(peer, mode, view)] / base if base else float("nan"),
@@ -130,8 +139,9 @@ def main():
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
+    volume = "" if a.kind == "f32" else f"; volume {a.kind} (volcast and VTK)"
     lines = [f"Peer benchmark, {time.strftime('%Y-%m-%d %H:%M')}, {machine()}; volcast = "
-             f"{os.environ.get('VOLCAST', '/work/main/target/release/volcast')}; {a.reps} repetitions, medians.",
+             f"{os.environ.get('VOLCAST', '/work/main/target/release/volcast')}; {a.reps} repetitions, medians{volume}.",
              "", "| view | mode | peer | seconds per frame | (fastest - slowest) | ratio to volcast | error vs reference |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:

@@ -3,7 +3,7 @@
 as whole processes: seconds per frame = (T(--frames 0..5) - T(--frames 0..1)) / 4, with
 --no-view-reuse (the five frames are the same view, which volcast would otherwise render once).
 Stores frame 0 in the common form (common.py) and prints one RESULT line per case.
-Usage: run_volcast.py --out DIR [--volcast BIN] [--data DIR] [--modes ...] [--views ...]"""
+Usage: run_volcast.py --out DIR [--volcast BIN] [--data DIR] [--modes ...] [--views ...] [--kind u8]"""
 import argparse
 import os
 import subprocess
@@ -27,10 +27,15 @@ VARIANTS = {
 }
 
 
-def scene_copy(view, mode, data_dir, work, variant="volcast"):
-    """The scene with its volume path pointing into data_dir, and the variant's step."""
+def scene_copy(view, mode, data_dir, work, variant="volcast", kind="f32"):
+    """The scene with its volume path pointing into data_dir, and the variant's step; for kind
+    'u8', the uint8 volume through the window [0, 255] (the same normalised values)."""
     src = open(os.path.join(HERE, "scenes", f"{view}_{mode}.toml")).read()
     src = src.replace("\nstep = 0.5\n", "\n" + VARIANTS[variant][1] + "\n")
+    if kind == "u8":
+        assert "volume_f32.nrrd" in src and "\nwindow = [0.0, 1.0]\n" in src
+        src = src.replace("volume_f32.nrrd", "volume_u8.nrrd")
+        src = src.replace("\nwindow = [0.0, 1.0]\n", "\nwindow = [0.0, 255.0]\n")
     path = os.path.join(work, f"{view}_{mode}_{variant}.toml")
     os.makedirs(work, exist_ok=True)
     with open(path, "w") as f:
@@ -65,6 +70,8 @@ def main():
     ap.add_argument("--views", default=",".join(C.VIEWS))
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--no-timing", action="store_true", help="render frame 0 only")
+    ap.add_argument("--kind", choices=("f32", "u8"), default="f32",
+                    help="the volume read: float32 (the benchmark's) or uint8 (the issue's)")
     a = ap.parse_args()
     work = os.path.join(a.out, "volcast_work")
     for view in a.views.split(","):
@@ -72,7 +79,7 @@ def main():
             for variant, (modes, _) in VARIANTS.items():
                 if mode not in modes:
                     continue
-                scene = scene_copy(view, mode, a.data, work, variant)
+                scene = scene_copy(view, mode, a.data, work, variant, a.kind)
                 out = os.path.join(work, f"{view}_{mode}_{variant}")
                 base = [a.volcast, "render", scene, "--out", out, "--quiet", "--no-view-reuse",
                         "--threads", str(a.threads)]

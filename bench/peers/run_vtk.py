@@ -11,7 +11,7 @@ linear interpolation, ScalarOpacityUnitDistance 1, black background.
 Timing: render call only (Render + WaitForCompletion), after one cold render, camera touched
 between renders; prints the median of --renders warm renders per case as a RESULT line, and
 stores the image in the common form (common.py).
-Usage: run_vtk.py --out DIR [--data DIR] [--modes ...] [--views ...] [--renders 5]"""
+Usage: run_vtk.py --out DIR [--data DIR] [--modes ...] [--views ...] [--renders 5] [--kind u8]"""
 import argparse
 import os
 import statistics
@@ -32,7 +32,10 @@ ISO_RAMP = 0.005
 OPACITY_XRAY = 1.0 / C.XRAY_LENGTH
 
 
-def make_property(mode):
+def make_property(mode, scale=1.0):
+    """The mode's property over values in [0, scale] (1 for float32, 255 for uint8): the
+    transfer functions' points are placed at value * scale, so both read the same function of
+    the normalised value."""
     prop = vtk.vtkVolumeProperty()
     prop.SetInterpolationTypeToLinear()
     prop.SetScalarOpacityUnitDistance(1.0)
@@ -40,9 +43,9 @@ def make_property(mode):
     opacity = vtk.vtkPiecewiseFunction()
     if mode == "iso":
         colour.AddRGBPoint(0.0, 1, 1, 1)
-        colour.AddRGBPoint(1.0, 1, 1, 1)
+        colour.AddRGBPoint(scale, 1, 1, 1)
         for v, a in ((0.0, 0.0), (C.ISO - ISO_RAMP, 0.0), (C.ISO + ISO_RAMP, 1.0), (1.0, 1.0)):
-            opacity.AddPoint(v, a)
+            opacity.AddPoint(v * scale, a)
         prop.ShadeOn()
         prop.SetAmbient(C.PHONG["ka"])
         prop.SetDiffuse(C.PHONG["kd"])
@@ -50,12 +53,15 @@ def make_property(mode):
         prop.SetSpecularPower(C.PHONG["exponent"])
     else:
         colour.AddRGBPoint(0.0, 0, 0, 0)
-        colour.AddRGBPoint(1.0, 1, 1, 1)
+        colour.AddRGBPoint(scale, 1, 1, 1)
+        # the GPU mapper's additive sum takes each sample's value as its texture holds it,
+        # normalised to [0, 1] for uint8 as well: the opacity is the same for both (checked:
+        # dividing it by 255 for uint8 gave an image 62 grey levels off the reference)
         points = {"mip": ((0.0, 1.0), (1.0, 1.0)),
                   "composite": ((0.0, 0.0), (0.1, 0.0), (1.0, 0.2)),
                   "xray": ((0.0, OPACITY_XRAY), (1.0, OPACITY_XRAY))}[mode]
         for v, a in points:
-            opacity.AddPoint(v, a)
+            opacity.AddPoint(v * scale, a)
     prop.SetColor(colour)
     prop.SetScalarOpacity(opacity)
     return prop
@@ -114,7 +120,7 @@ def to_common(mode, rgba):
     return rgba[..., 0]        # mip: value; xray: integral / 64; composite: grey over black
 
 
-def run_case(image, mode, view, renders):
+def run_case(image, mode, view, renders, scale=1.0):
     rw = vtk.vtkRenderWindow()
     rw.SetOffScreenRendering(1)
     rw.SetSize(C.IMG, C.IMG)
@@ -126,7 +132,7 @@ def run_case(image, mode, view, renders):
     rw.AddRenderer(ren)
     vol = vtk.vtkVolume()
     vol.SetMapper(make_mapper(mode, image))
-    vol.SetProperty(make_property(mode))
+    vol.SetProperty(make_property(mode, scale))
     ren.AddVolume(vol)
     cam = set_camera(ren, view)
     wait = getattr(rw, "WaitForCompletion", lambda: None)
@@ -151,15 +157,18 @@ def main():
     ap.add_argument("--modes", default=",".join(C.MODES))
     ap.add_argument("--views", default=",".join(C.VIEWS))
     ap.add_argument("--renders", type=int, default=5)
+    ap.add_argument("--kind", choices=("f32", "u8"), default="f32",
+                    help="the volume read: float32 (the benchmark's) or uint8 (the issue's)")
     a = ap.parse_args()
+    scale = 255.0 if a.kind == "u8" else 1.0
     vtk.vtkMultiThreader.SetGlobalMaximumNumberOfThreads(2)
     reader = vtk.vtkNrrdReader()
-    reader.SetFileName(C.volume_path(a.data, "f32"))
+    reader.SetFileName(C.volume_path(a.data, a.kind))
     reader.Update()
     image = reader.GetOutput()
     for view in a.views.split(","):
         for mode in a.modes.split(","):
-            secs, rgba = run_case(image, mode, view, a.renders)
+            secs, rgba = run_case(image, mode, view, a.renders, scale)
             C.save_result(a.out, "vtk", mode, view, to_common(mode, rgba))
             np.save(os.path.join(a.out, f"vtk_{view}_{mode}_rgba.npy"), rgba.astype(np.float32))
             mapper = "gpu-llvmpipe" if mode == "xray" else "fixedpoint"
