@@ -382,8 +382,9 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// The normalised voxels of the cell at `base` as the interpolation along x takes
     /// them: `a` = voxels (000, 010, 001, 011), `b` = (100, 110, 101, 111). float32
     /// voxels are loaded two at a time along x and normalised in f64 lanes (the same
-    /// operations as [`Normalize::apply`], so the same bits); the others through
-    /// [`Grid::cell_values`].
+    /// operations as [`Normalize::apply`], so the same bits); 8-bit voxels two at a
+    /// time through the table of pairs where the grid has one ([`Grid::with_pairs`]);
+    /// the others through [`Grid::cell_values`].
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn cell_vectors_sse2(
@@ -409,6 +410,18 @@ impl<'a, T: Voxel> Grid<'a, T> {
             };
             let lo = _mm_movelh_ps(norm2(lo), norm2(_mm_movehl_ps(lo, lo)));
             let hi = _mm_movelh_ps(norm2(hi), norm2(_mm_movehl_ps(hi, hi)));
+            let a = _mm_shuffle_ps(lo, hi, 0b10_00_10_00);
+            let b = _mm_shuffle_ps(lo, hi, 0b11_01_11_01);
+            return (a, b);
+        }
+        if T::TYPE == crate::volume::ScalarType::Uint8 && !self.pairs.is_empty() {
+            let [_, dy, dz] = self.step;
+            // SAFETY: as above, each pair (i, i + 1) is inside the voxels (the grid
+            // has a table of pairs only where x has two voxels or more, so `dx` is 1);
+            // each row's two normalised voxels come as one word of the table
+            let pair = |i: usize| _mm_castsi128_ps(_mm_cvtsi64_si128(self.pair_word(i as i64)));
+            let lo = _mm_movelh_ps(pair(base), pair(base + dy)); // 000 100 010 110
+            let hi = _mm_movelh_ps(pair(base + dz), pair(base + dy + dz)); // 001 101 011 111
             let a = _mm_shuffle_ps(lo, hi, 0b10_00_10_00);
             let b = _mm_shuffle_ps(lo, hi, 0b11_01_11_01);
             return (a, b);
