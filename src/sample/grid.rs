@@ -22,6 +22,29 @@ macro_rules! each_row {
     };
 }
 
+/// The lanes of one call's constants ([`avx2::LaneConstants`]), broadcast with
+/// `$set1` (the path's 64-bit broadcast): the three axes as the path's own `Axis`,
+/// the strides of y and z, and the offsets of a cell's four rows. Written out here
+/// rather than through `array::map`, whose closures do not take the calling
+/// function's target features: each `set1` was then a call and the arrays were
+/// copied by `memcpy`, a cost per call that short calls felt.
+#[cfg(target_arch = "x86_64")]
+macro_rules! broadcast_lanes {
+    ($c:expr, $set1:ident) => {{
+        let c = $c;
+        let b = |x: i64| $set1(x);
+        (
+            [
+                Axis::new(c.axes[0]),
+                Axis::new(c.axes[1]),
+                Axis::new(c.axes[2]),
+            ],
+            [b(c.strides[0]), b(c.strides[1])],
+            [b(c.rows[0]), b(c.rows[1]), b(c.rows[2]), b(c.rows[3])],
+        )
+    }};
+}
+
 #[cfg(target_arch = "x86_64")]
 mod avx2;
 #[cfg(target_arch = "x86_64")]

@@ -126,22 +126,7 @@ impl<T: Voxel> Grid<'_, T> {
         debug_assert_eq!(ts.len(), out.len());
         let c = self.lane_constants(o, d);
         let kind = c.kind;
-        // broadcast here, not through `array::map`: its closures do not take this
-        // function's target features, so each `set1` was a call and the arrays were
-        // copied by `memcpy`, a cost per call that short calls felt
-        let axes = [
-            Axis::new(c.axes[0]),
-            Axis::new(c.axes[1]),
-            Axis::new(c.axes[2]),
-        ];
-        let broadcast = |x: i64| _mm256_set1_epi64x(x);
-        let [sx, sxy] = [broadcast(c.strides[0]), broadcast(c.strides[1])];
-        let rows = [
-            broadcast(c.rows[0]),
-            broadcast(c.rows[1]),
-            broadcast(c.rows[2]),
-            broadcast(c.rows[3]),
-        ];
+        let (axes, [sx, sxy], rows) = broadcast_lanes!(&c, _mm256_set1_epi64x);
         let groups = ts.len() / 4;
         for g in 0..groups {
             let t = _mm256_loadu_pd(ts.as_ptr().add(4 * g));
@@ -159,15 +144,15 @@ impl<T: Voxel> Grid<'_, T> {
             );
             let sample = match kind {
                 Gather::Float32 => {
-                    let c = each_row!(self.row_f32::<ROW_GENERAL>, _mm256_add_epi64, base, rows);
+                    let c = each_row!(self.row_words::<ROW_GENERAL>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Float32Unit => {
-                    let c = each_row!(self.row_f32::<ROW_UNIT>, _mm256_add_epi64, base, rows);
+                    let c = each_row!(self.row_words::<ROW_UNIT>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Float32Bare => {
-                    let c = each_row!(self.row_f32::<ROW_BARE>, _mm256_add_epi64, base, rows);
+                    let c = each_row!(self.row_words::<ROW_BARE>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits16 => {
@@ -179,7 +164,7 @@ impl<T: Voxel> Grid<'_, T> {
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits8Pairs => {
-                    let c = each_row!(self.row_f32::<ROW_PAIRS>, _mm256_add_epi64, base, rows);
+                    let c = each_row!(self.row_words::<ROW_PAIRS>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
             };
@@ -197,7 +182,7 @@ impl<T: Voxel> Grid<'_, T> {
     /// 8-bit ones through the table of pairs ([`ROW_PAIRS`]).
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn row_f32<const KIND: u8>(&self, at: __m256i) -> (__m128, __m128) {
+    unsafe fn row_words<const KIND: u8>(&self, at: __m256i) -> (__m128, __m128) {
         // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
         // voxel; each lane reads the two adjacent voxels as one word
         let at: [i64; 4] = std::mem::transmute(at);

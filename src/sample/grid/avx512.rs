@@ -99,20 +99,7 @@ impl<T: Voxel> Grid<'_, T> {
     ) {
         debug_assert!(ts.len().is_multiple_of(8) && ts.len() == out.len());
         let kind = c.kind;
-        // broadcast here, not through `array::map` (as `avx2.rs`)
-        let axes = [
-            Axis::new(c.axes[0]),
-            Axis::new(c.axes[1]),
-            Axis::new(c.axes[2]),
-        ];
-        let broadcast = |x: i64| _mm512_set1_epi64(x);
-        let [sx, sxy] = [broadcast(c.strides[0]), broadcast(c.strides[1])];
-        let rows = [
-            broadcast(c.rows[0]),
-            broadcast(c.rows[1]),
-            broadcast(c.rows[2]),
-            broadcast(c.rows[3]),
-        ];
+        let (axes, [sx, sxy], rows) = broadcast_lanes!(c, _mm512_set1_epi64);
         for g in 0..ts.len() / 8 {
             let at = 8 * g;
             let t = _mm512_loadu_pd(ts.as_ptr().add(at));
@@ -129,15 +116,15 @@ impl<T: Voxel> Grid<'_, T> {
             );
             let sample = match kind {
                 Gather::Float32 => {
-                    let corners = self.rows_f32_x8::<ROW_GENERAL>(base, c.rows);
+                    let corners = self.rows_words_x8::<ROW_GENERAL>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
                 Gather::Float32Unit => {
-                    let corners = self.rows_f32_x8::<ROW_UNIT>(base, c.rows);
+                    let corners = self.rows_words_x8::<ROW_UNIT>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
                 Gather::Float32Bare => {
-                    let corners = self.rows_f32_x8::<ROW_BARE>(base, c.rows);
+                    let corners = self.rows_words_x8::<ROW_BARE>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
                 Gather::Bits16 => {
@@ -149,7 +136,7 @@ impl<T: Voxel> Grid<'_, T> {
                     interpolate(c, fx, fy, fz)
                 }
                 Gather::Bits8Pairs => {
-                    let corners = self.rows_f32_x8::<ROW_PAIRS>(base, c.rows);
+                    let corners = self.rows_words_x8::<ROW_PAIRS>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
             };
@@ -166,7 +153,7 @@ impl<T: Voxel> Grid<'_, T> {
     /// address).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
-    unsafe fn rows_f32_x8<const KIND: u8>(
+    unsafe fn rows_words_x8<const KIND: u8>(
         &self,
         base: __m512i,
         rows: [i64; 4],
@@ -189,7 +176,7 @@ impl<T: Voxel> Grid<'_, T> {
                     f32_pair(p, base[k])
                 }
             };
-            self.row_f32_x8::<KIND>(_mm512_set_epi64(
+            self.row_words_x8::<KIND>(_mm512_set_epi64(
                 w(7),
                 w(6),
                 w(5),
@@ -210,7 +197,7 @@ impl<T: Voxel> Grid<'_, T> {
     /// ([`ROW_PAIRS`]).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
-    unsafe fn row_f32_x8<const KIND: u8>(&self, pairs: __m512i) -> (__m256, __m256) {
+    unsafe fn row_words_x8<const KIND: u8>(&self, pairs: __m512i) -> (__m256, __m256) {
         // the low and high halves of each 64-bit element: voxels `at` and `at + 1`
         let a = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(pairs));
         let b = _mm256_castsi256_ps(_mm512_cvtepi64_epi32(_mm512_srli_epi64::<32>(pairs)));
