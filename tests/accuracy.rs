@@ -658,6 +658,26 @@ fn bench_accuracy_quick_writes_its_report() {
             "{field}: pre-integrated {pre} vs sampled {sampled}"
         );
     }
+    // early termination at e changes a pixel's error by at most 1 - e, so the RMS
+    // error by at most that too; and at 0.99 it does change the sphere's ramp
+    for field in ["gaussian", "sphere"] {
+        for tf in ["ramp", "narrow"] {
+            for step in ["1", "0.25"] {
+                let full = rms(field, "sampled", tf, step);
+                for (method, e) in [("early 0.995", 0.995), ("early 0.99", 0.99)] {
+                    let cut = rms(field, method, tf, step);
+                    assert!(
+                        (cut - full).abs() <= 1.0 - e + 1e-6,
+                        "{field} {tf} step {step} {method}: {cut} against {full}"
+                    );
+                }
+            }
+        }
+    }
+    assert_ne!(
+        rms("sphere", "early 0.99", "ramp", "1"),
+        rms("sphere", "sampled", "ramp", "1")
+    );
     for r in &rows {
         let (ms, err): (f64, f64) = (r[7].parse().unwrap(), r[10].parse().unwrap());
         assert!(ms > 0.0 && err.is_finite(), "{r:?}");

@@ -242,12 +242,15 @@ fn cases(opts: &Options, nfields: usize, fog: Option<usize>) -> Vec<Case> {
             );
             let truth = format!("composite-{tf}");
             for &s in steps {
-                for (method, extra) in [
-                    ("sampled", ""),
-                    ("jitter", "\njitter = true"),
-                    ("preintegrated", "\npreintegrated = true"),
+                let stop = |e: f64| base.replace("early_stop = 1.0", &format!("early_stop = {e}"));
+                for (method, k) in [
+                    ("sampled", base.clone()),
+                    ("jitter", format!("{base}\njitter = true")),
+                    ("preintegrated", format!("{base}\npreintegrated = true")),
+                    // early termination: the scenes' default 0.99 and a later 0.995
+                    ("early 0.995", stop(0.995)),
+                    ("early 0.99", stop(0.99)),
                 ] {
-                    let k = format!("{base}{extra}");
                     push(
                         &mut out,
                         f,
