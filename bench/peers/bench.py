@@ -21,6 +21,7 @@ import common as C
 HERE = os.path.dirname(os.path.abspath(__file__))
 PEERS = ("volcast", "vtk", "teem", "volpack")
 LABEL = {"volcast": "volcast", "volcast-step1": "volcast, step 1 (opt-in)",
+         "volcast-step1-e995": "volcast, step 1, early stop 0.995 (opt-in)",
          "volcast-pre2": "volcast, step 2 pre-integrated (opt-in)", "vtk": "VTK 9.7.2",
          "teem": "teem 1.12", "volpack": "VolPack 1.0b3", "volpack-raw": "VolPack 1.0b3 (from raw)"}
 INPUT = {"volpack": "u8", "volpack-raw": "u8"}   # the others read the float32 volume (--kind u8: uint8)
@@ -58,7 +59,8 @@ def plot(rows, path):
     import matplotlib.pyplot as plt
     floor = 1e-3            # errors below this (exact within round-off) are drawn at it
     fig, axes = plt.subplots(1, 4, figsize=(18, 4.8))
-    markers = {"volcast": "o", "volcast-step1": "P", "volcast-pre2": "X", "vtk": "s", "teem": "^",
+    markers = {"volcast": "o", "volcast-step1": "P", "volcast-step1-e995": "*",
+               "volcast-pre2": "X", "vtk": "s", "teem": "^",
                "volpack": "D", "volpack-raw": "d"}
     handles = {}
     for ax, mode in zip(axes, C.MODES):

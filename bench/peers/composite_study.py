@@ -62,7 +62,7 @@ def count_samples(data_dir):
 
 
 def scene(view, data, work, step, alpha=None):
-    R.VARIANTS["study"] = (("composite",), f"step = {step}")
+    R.VARIANTS["study"] = (("composite",), f"step = {step}", None)
     path = R.scene_copy(view, "composite", data, work, "study")
     if alpha is not None:
         text = open(path).read()

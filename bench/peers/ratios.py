@@ -19,7 +19,7 @@ def main(path):
     print("| view | mode | volcast / VTK per repetition | median |")
     print("| --- | --- | --- | --- |")
     cases = [(m, "volcast") for m in ("mip", "xray", "composite", "iso")]
-    cases.insert(3, ("composite", "volcast-step1"))
+    cases[3:3] = [("composite", "volcast-step1"), ("composite", "volcast-step1-e995")]
     for view in ("ortho", "persp"):
         for mode, peer in cases:
             ours = seconds.get((view, mode, peer), {})
