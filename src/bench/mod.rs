@@ -316,18 +316,47 @@ impl Report {
             v.dedup();
             v
         };
-        // 1. sampled trilinear over the steps vs exact
+        // the filters and surfaces at a mid step
+        let mid = if steps.contains(&0.5) {
+            0.5
+        } else {
+            steps.last().copied().unwrap_or(1.0)
+        };
+        self.sampled_table(&mut s, &fields, &steps);
+        self.filters_table(&mut s, &fields, mid);
+        self.surfaces_table(&mut s, &fields, mid);
+        let _ = writeln!(s, "\n**Compositing** (transfer functions `ramp` and the narrow peak `narrow`): RMS error of premultiplied colour and opacity, sampled / jittered / pre-integrated.\n");
+        self.composite_table(
+            &mut s,
+            &fields,
+            &steps,
+            ["sampled", "jitter", "preintegrated"],
+        );
+        let _ = writeln!(s, "\n**Early termination** (compositing, sampled trilinear): RMS error of premultiplied colour and opacity with `early_stop` 1.0 (no early stop) / 0.995 / 0.99.\n");
+        self.composite_table(
+            &mut s,
+            &fields,
+            &steps,
+            ["sampled", "early 0.995", "early 0.99"],
+        );
+        self.reconstruction_table(&mut s);
+        self.normals_table(&mut s);
+        s
+    }
+
+    /// Sampled trilinear passes over the steps against exact integration.
+    fn sampled_table(&self, s: &mut String, fields: &[&str], steps: &[f64]) {
         let _ = writeln!(s, "**Sampled (trilinear) against exact integration**: RMS error, and in brackets ms per view. Exact has no step; its error is the reconstruction's alone.\n");
         let mut head = String::from("| field | mode |");
         let mut rule = String::from("| --- | --- |");
-        for st in &steps {
+        for st in steps {
             let _ = write!(head, " step {st} |");
             rule += " --- |";
         }
         head += " exact |";
         rule += " --- |";
         let _ = writeln!(s, "{head}\n{rule}");
-        for f in &fields {
+        for f in fields {
             for mode in [
                 "xray", "mip", "minip", "average", "lmip", "depth", "surface",
             ] {
@@ -338,7 +367,7 @@ impl Report {
                     continue;
                 }
                 let _ = write!(s, "| {f} | {mode} |");
-                for st in &steps {
+                for st in steps {
                     let cell = self
                         .find(f, mode, "sampled", "trilinear", Some(*st))
                         .map_or("".into(), |r| {
@@ -354,12 +383,10 @@ impl Report {
                 let _ = writeln!(s, " {cell} |");
             }
         }
-        // 1b. interpolation filters, sampled, at a mid step
-        let mid = if steps.contains(&0.5) {
-            0.5
-        } else {
-            steps.last().copied().unwrap_or(1.0)
-        };
+    }
+
+    /// The interpolation filters' sampled passes at step `mid`.
+    fn filters_table(&self, s: &mut String, fields: &[&str], mid: f64) {
         let interps = ["nearest", "trilinear", "bspline", "cubic"];
         let _ = writeln!(
             s,
@@ -371,7 +398,7 @@ impl Report {
             interps.join(" | "),
             " --- |".repeat(interps.len())
         );
-        for f in &fields {
+        for f in fields {
             for mode in ["xray", "mip", "minip", "average", "lmip", "depth"] {
                 let cells: Vec<String> = interps
                     .iter()
@@ -388,7 +415,10 @@ impl Report {
                 let _ = writeln!(s, "| {f} | {mode} | {} |", cells.join(" | "));
             }
         }
-        // 1c. surfaces by gradient estimator
+    }
+
+    /// Shaded iso-surfaces by interpolation and gradient estimator at step `mid`.
+    fn surfaces_table(&self, s: &mut String, fields: &[&str], mid: f64) {
         let mut combos: Vec<(String, String)> = self
             .rows
             .iter()
@@ -414,7 +444,7 @@ impl Report {
                 .join(" | "),
             " --- |".repeat(combos.len())
         );
-        for f in &fields {
+        for f in fields {
             let cells: Vec<String> = combos
                 .iter()
                 .map(|(i, g)| {
@@ -435,23 +465,10 @@ impl Report {
                 let _ = writeln!(s, "| {f} | {} |", cells.join(" | "));
             }
         }
-        // 2. composite: sampled, jitter, pre-integrated
-        let _ = writeln!(s, "\n**Compositing** (transfer functions `ramp` and the narrow peak `narrow`): RMS error of premultiplied colour and opacity, sampled / jittered / pre-integrated.\n");
-        self.composite_table(
-            &mut s,
-            &fields,
-            &steps,
-            ["sampled", "jitter", "preintegrated"],
-        );
-        // 3. composite: early termination
-        let _ = writeln!(s, "\n**Early termination** (compositing, sampled trilinear): RMS error of premultiplied colour and opacity with `early_stop` 1.0 (no early stop) / 0.995 / 0.99.\n");
-        self.composite_table(
-            &mut s,
-            &fields,
-            &steps,
-            ["sampled", "early 0.995", "early 0.99"],
-        );
-        // 4. reconstruction
+    }
+
+    /// The Marschner-Lobb reconstruction errors.
+    fn reconstruction_table(&self, s: &mut String) {
         let _ = writeln!(s, "\n**Reconstruction of Marschner-Lobb 41^3** (error of the reconstructed field against the analytic signal at {} uniform random points, fixed seed):\n", self.reconstruction.first().map_or(0, |r| r.points));
         let _ = writeln!(s, "| interpolation | max, [-1,1]^3 | RMS, [-1,1]^3 | max, [-0.9,0.9]^3 | RMS, [-0.9,0.9]^3 |\n| --- | --- | --- | --- | --- |");
         for pair in self.reconstruction.chunks(2) {
@@ -467,7 +484,10 @@ impl Report {
                 );
             }
         }
-        // 5. normals
+    }
+
+    /// The normals' angles on a sphere.
+    fn normals_table(&self, s: &mut String) {
         let _ = writeln!(s, "\n**Normals on a sphere** (iso-surface f = 0.5 of the sphere-distance field, radius 11 voxels; angle to the radial normal at {} uniform points):\n", self.normals.first().map_or(0, |r| r.points));
         let _ = writeln!(
             s,
@@ -482,7 +502,6 @@ impl Report {
                 sig(n.max_deg)
             );
         }
-        s
     }
 
     /// A table of the trilinear composites' RMS errors: a row per field and transfer
