@@ -141,108 +141,24 @@ impl Plan {
 
     /// Plans `scene` for a volume described by `header`.
     pub fn build(scene: &Scene, header: &VolumeHeader, opts: &RunOptions) -> Result<Plan, Error> {
-        let fail = |message: String| Error::Plan {
-            scene: scene.path.clone(),
-            message,
-        };
-        let geometry = &header.geometry;
-        if !geometry.is_valid() {
-            return Err(fail(format!(
-                "the volume {} has degenerate axes (space directions or spacings are zero, non-finite or coplanar)",
-                header.source
-            )));
-        }
-        if let Some(crop) = scene.volume.crop {
-            for (a, (&[lo, hi], &n)) in crop.iter().zip(&header.sizes).enumerate() {
-                if hi >= n {
-                    return Err(fail(format!(
-                        "volume.crop: the {} range [{lo}, {hi}] is outside the volume's {n} voxels (0..={})",
-                        ["x", "y", "z"][a],
-                        n - 1
-                    )));
-                }
-                debug_assert!(lo <= hi, "checked by the scene resolver");
-            }
-        }
-        let total = scene.orbit.frames;
-        let frames = match &opts.frames {
-            None => 0..total,
-            Some(r) if r.start < r.end && r.end <= total => r.clone(),
-            Some(r) => {
-                return Err(fail(format!(
-                    "frames {}..{} are not within the orbit's {total} frames (0..{total})",
-                    r.start, r.end
-                )))
-            }
-        };
-        let eyes = match &scene.stereo {
-            None => vec![(Eye::Mono, 0.0)],
-            Some(s) if s.method == crate::scene::StereoMethod::ToeIn => vec![
-                (Eye::Left, -s.angle_deg / 2.0),
-                (Eye::Right, s.angle_deg / 2.0),
-            ],
-            Some(_) => vec![(Eye::Left, 0.0), (Eye::Right, 0.0)],
-        };
-        let views = crate::views::Views::new(scene, !opts.no_view_reuse);
-        let frame_list = match opts.shard {
-            Some(shard) => shard.select(frames.clone()),
-            None => frames.clone().collect(),
-        };
         let (width, height) = opts.size.unwrap_or((scene.image.width, scene.image.height));
-        if let Some(a) = &scene.animation {
-            let file_width = match scene.stereo {
-                Some(s) if matches!(s.layout, Layout::SideBySide | Layout::CrossEyed) => {
-                    2 * width + s.gap
-                }
-                _ => width,
-            };
-            if a.formats.contains(&crate::scene::AnimationFormat::Gif)
-                && file_width.max(height) > usize::from(u16::MAX)
-            {
-                return Err(fail(format!(
-                    "[animation] gif: GIF images are at most 65535 pixels wide and high, these frames are {file_width} x {height} (use formats = [\"apng\"] or a smaller size)"
-                )));
-            }
-        }
-        let viewer = scene.viewer || opts.viewer;
-        if viewer && scene.image.format == Format::Nrrd {
-            return Err(fail(
-                "--viewer: the turntable page shows the PNG frames in a browser, and this scene writes nrrd (browsers cannot show it): use [image] format = \"png\" or \"png16\"".into(),
-            ));
-        }
+        let frames =
+            check(scene, header, opts, (width, height)).map_err(|message| Error::Plan {
+                scene: scene.path.clone(),
+                message,
+            })?;
+        let storage = scene.volume.source.storage()?;
+        let geometry = &header.geometry;
         let voxel_length = geometry
             .spacings()
             .into_iter()
             .fold(f64::INFINITY, f64::min);
-        let voxels = header.voxel_count() as u64;
-        let storage = scene.volume.source.storage()?;
         let index_from_world = geometry
             .index_from_world_matrix()
-            .expect("checked by is_valid above");
+            .expect("checked by is_valid in check");
         let frame = IndexFrame::new(header.sizes, scene.volume.crop, geometry, index_from_world);
         let sphere = frame.bounding_sphere(geometry);
-        let light = shade_light(scene, sphere.0);
-        let passes: Vec<RenderPass> = scene
-            .passes
-            .iter()
-            .map(|p| {
-                let clips = scene
-                    .clips
-                    .iter()
-                    .filter(|c| c.applies_to(&p.name))
-                    .map(|c| c.plane())
-                    .collect();
-                RenderPass::new(
-                    p,
-                    header.scalar_type,
-                    voxel_length,
-                    2.0 * sphere.1,
-                    light,
-                    !opts.no_skip,
-                )
-                .with_clips(clips)
-            })
-            .collect();
+        let passes = render_passes(scene, header, voxel_length, sphere, opts);
         let (variants, variant_of) = pass_variants(scene, &passes);
         let auto_window = scene
             .passes
@@ -254,7 +170,114 @@ impl Plan {
                     && scene.image.format != Format::Nrrd
             })
             .collect();
-        // shared precomputations, each counted once
+        let frame_list = match opts.shard {
+            Some(shard) => shard.select(frames.clone()),
+            None => frames.clone().collect(),
+        };
+        let mut plan = Plan {
+            frames,
+            shard: opts.shard,
+            frame_list,
+            views: crate::views::Views::new(scene, !opts.no_view_reuse),
+            eyes: eyes(scene),
+            width,
+            height,
+            out: opts.out.clone().unwrap_or_else(|| scene.image.out.clone()),
+            viewer: scene.viewer || opts.viewer,
+            length_unit: length_unit(header),
+            passes,
+            variants,
+            variant_of,
+            auto_window,
+            frame,
+            sphere,
+            preview: (width.div_ceil(4).max(8), height.div_ceil(4).max(8)),
+            voxel_length,
+            volume_bytes: storage.allocated_bytes(),
+            storage,
+            precomputed_bytes: 0,
+            transient_bytes: 0,
+            film_bytes: 0,
+            preview_bytes: 0,
+            output_bytes: 0,
+            animation_bytes: 0,
+            memory: Vec::new(),
+            threads: opts
+                .threads
+                .unwrap_or_else(rayon::current_num_threads)
+                .max(1),
+            samples_estimate: 0.0,
+        };
+        plan.estimate(scene, header);
+        Ok(plan)
+    }
+
+    /// Fills in the estimates: memory, item by item, and samples.
+    fn estimate(&mut self, scene: &Scene, header: &VolumeHeader) {
+        let voxels = header.voxel_count() as u64;
+        let pre = self.precomputations(header);
+        self.precomputed_bytes = pre.bytes;
+        self.transient_bytes = pre.transient;
+        self.estimate_images(scene);
+        let diagonal = {
+            let c = header.geometry.corners(header.sizes);
+            (c[7] - c[0]).length()
+        };
+        self.samples_estimate = self
+            .passes
+            .iter()
+            .map(|p| (diagonal / p.dt + 2.0) * (self.width * self.height) as f64)
+            .sum::<f64>()
+            * self.views.needed(self.frame_list.iter().copied()) as f64;
+        let memory = &mut self.memory;
+        match &self.storage {
+            crate::volume::Storage::Read { bytes, reason } => {
+                memory.push((format!("volume, read into memory ({reason})"), *bytes));
+            }
+            crate::volume::Storage::Mapped { .. } => {}
+        }
+        for g in &pre.gradient_methods {
+            memory.push((
+                format!("{} gradient volume (3 floats per voxel)", g.name()),
+                voxels.saturating_mul(12),
+            ));
+        }
+        if pre.cubic {
+            memory.push((
+                "cubic B-spline coefficients (a float per voxel)".into(),
+                voxels.saturating_mul(4),
+            ));
+            memory.push((
+                "cubic prefilter while it runs (two double-precision copies)".into(),
+                pre.transient,
+            ));
+        }
+        if pre.small > 0 {
+            memory.push((
+                "macrocell grids and their footprints, transfer-function and lookup tables".into(),
+                pre.small,
+            ));
+        }
+        memory.push((
+            format!(
+                "rendered images in flight ({} x {}, {} threads)",
+                self.width, self.height, self.threads
+            ),
+            self.film_bytes,
+        ));
+        if self.preview_bytes > 0 {
+            memory.push((
+                "grey-window previews of every view".into(),
+                self.preview_bytes,
+            ));
+        }
+        memory.push(("images being encoded and written".into(), self.output_bytes));
+    }
+
+    /// What the passes precompute, shared between them and each counted once.
+    fn precomputations(&self, header: &VolumeHeader) -> Precomputations {
+        let voxels = header.voxel_count() as u64;
+        let passes = &self.passes;
         let mut gradient_methods: Vec<_> = passes
             .iter()
             .filter_map(|p| p.needs().gradient_volume)
@@ -271,55 +294,66 @@ impl Plan {
             0
         };
         let lut_bytes = header.scalar_type.lut_size() as u64 * 4 + pair_bytes;
-        let threads = opts
-            .threads
-            .unwrap_or_else(rayon::current_num_threads)
-            .max(1);
         // at most: the macrocells a skipping pass cannot pass over, as boxes, and per
         // view being rendered the windows of its tiles' rays (render/footprint.rs;
         // only the passes whose skipping is fixed build them)
         let footprint_bytes = passes.iter().filter(|p| p.needs().grid.is_some()).count() as u64
-            * Footprint::max_bytes(header.sizes, width, height, threads);
+            * Footprint::max_bytes(header.sizes, self.width, self.height, self.threads);
         let table_bytes: u64 = passes
             .iter()
             .map(|p| p.table_bytes(header.sizes))
             .sum::<u64>()
             .saturating_add(footprint_bytes);
-        let precomputed_bytes = voxels
-            .saturating_mul(12 * gradient_methods.len() as u64 + if cubic { 4 } else { 0 })
-            .saturating_add(
-                grids
-                    .iter()
-                    .map(|g| g.grid_bytes(header.sizes))
-                    .sum::<u64>(),
-            )
+        let grid_bytes = grids
+            .iter()
+            .map(|g| g.grid_bytes(header.sizes))
+            .sum::<u64>();
+        let small = grid_bytes
             .saturating_add(table_bytes)
             .saturating_add(lut_bytes);
         // The prefilter works in double precision on a copy of the volume and gathers
         // the z lines into a second copy (plus a small header per line).
-        let transient_bytes = if cubic {
+        let transient = if cubic {
             voxels.saturating_mul(16).saturating_add(
                 (header.sizes[0] as u64).saturating_mul(header.sizes[1] as u64 * 48),
             )
         } else {
             0
         };
-        let channels_max = passes.iter().map(|p| p.channels()).max().unwrap_or(1);
+        Precomputations {
+            bytes: voxels
+                .saturating_mul(12 * gradient_methods.len() as u64 + if cubic { 4 } else { 0 })
+                .saturating_add(small),
+            transient,
+            small,
+            gradient_methods,
+            cubic,
+        }
+    }
+
+    /// Fills in the bytes of the images: rendered, previewed, encoded and animated.
+    fn estimate_images(&mut self, scene: &Scene) {
+        let threads = self.threads as u64;
+        let eyes = self.eyes.len();
+        let channels_max = self.passes.iter().map(|p| p.channels()).max().unwrap_or(1);
         // Views kept for one batch of frames (plus those a reused toe-in eye keeps
         // for later frames), and display copies for the images being encoded.
-        let kept_views = (crate::views::frames_per_batch(threads)
-            + views.reuse_steps().map_or(0, |m| m.unsigned_abs() as usize))
-        .min(frame_list.len().max(1))
-            * eyes.len()
+        let kept_views = (crate::views::frames_per_batch(self.threads)
+            + self
+                .views
+                .reuse_steps()
+                .map_or(0, |m| m.unsigned_abs() as usize))
+        .min(self.frame_list.len().max(1))
+            * eyes
             * scene.passes.len();
-        let pixels = width as u64 * height as u64;
-        let film_bytes = pixels.saturating_mul(
-            4 * (kept_views as u64 * channels_max as u64 + threads as u64 * eyes.len() as u64 * 3),
+        let pixels = self.width as u64 * self.height as u64;
+        self.film_bytes = pixels.saturating_mul(
+            4 * (kept_views as u64 * channels_max as u64 + threads * eyes as u64 * 3),
         );
         // what the files hold: one image, or both eyes side by side
         let file_pixels = match scene.stereo {
             Some(s) if matches!(s.layout, Layout::SideBySide | Layout::CrossEyed) => {
-                (2 * width as u64 + s.gap as u64) * height as u64
+                (2 * self.width as u64 + s.gap as u64) * self.height as u64
             }
             _ => pixels,
         };
@@ -330,112 +364,25 @@ impl Plan {
             Format::Nrrd => file_pixels.saturating_mul(8 * channels_max as u64),
             _ => file_pixels.saturating_mul(16),
         };
-        let output_bytes = (threads as u64).saturating_mul(per_file.saturating_add(if combined {
+        self.output_bytes = threads.saturating_mul(per_file.saturating_add(if combined {
             file_pixels.saturating_mul(16)
         } else {
             0
         }));
-        let preview_pixels = (width.div_ceil(4).max(8) * height.div_ceil(4).max(8)) as u64;
-        let auto_any = scene.passes.iter().zip(&passes).any(|(p, rp)| {
-            rp.kind() != ImageKind::Rgba && p.window.is_none() && scene.image.format != Format::Nrrd
-        });
-        let preview_bytes = if auto_any {
-            let orbit_views = views.needed(0..total) as u64;
-            preview_pixels.saturating_mul(4 * (orbit_views + threads as u64))
+        self.preview_bytes = if self.auto_window.iter().any(|&a| a) {
+            let (w, h) = self.preview;
+            let orbit_views = self.views.needed(0..scene.orbit.frames) as u64;
+            ((w * h) as u64).saturating_mul(4 * (orbit_views + threads))
         } else {
             0
         };
         // animations: a batch of decoded frames (8 bytes per pixel at most) and, for
         // GIF, a frame being quantised per thread
-        let animation_bytes = if scene.animation.is_some() {
-            file_pixels.saturating_mul(8 * 3 * threads as u64)
+        self.animation_bytes = if scene.animation.is_some() {
+            file_pixels.saturating_mul(8 * 3 * threads)
         } else {
             0
         };
-        let diagonal = {
-            let c = geometry.corners(header.sizes);
-            (c[7] - c[0]).length()
-        };
-        let samples_estimate: f64 = passes
-            .iter()
-            .map(|p| (diagonal / p.dt + 2.0) * (width * height) as f64)
-            .sum::<f64>()
-            * views.needed(frame_list.iter().copied()) as f64;
-        let out = opts.out.clone().unwrap_or_else(|| scene.image.out.clone());
-        let mut memory: Vec<(String, u64)> = Vec::new();
-        match &storage {
-            crate::volume::Storage::Read { bytes, reason } => {
-                memory.push((format!("volume, read into memory ({reason})"), *bytes));
-            }
-            crate::volume::Storage::Mapped { .. } => {}
-        }
-        for g in &gradient_methods {
-            memory.push((
-                format!("{} gradient volume (3 floats per voxel)", g.name()),
-                voxels.saturating_mul(12),
-            ));
-        }
-        if cubic {
-            memory.push((
-                "cubic B-spline coefficients (a float per voxel)".into(),
-                voxels.saturating_mul(4),
-            ));
-            memory.push((
-                "cubic prefilter while it runs (two double-precision copies)".into(),
-                transient_bytes,
-            ));
-        }
-        let small = (grids
-            .iter()
-            .map(|g| g.grid_bytes(header.sizes))
-            .sum::<u64>())
-        .saturating_add(table_bytes)
-        .saturating_add(lut_bytes);
-        if small > 0 {
-            memory.push((
-                "macrocell grids and their footprints, transfer-function and lookup tables".into(),
-                small,
-            ));
-        }
-        memory.push((
-            format!("rendered images in flight ({width} x {height}, {threads} threads)"),
-            film_bytes,
-        ));
-        if preview_bytes > 0 {
-            memory.push(("grey-window previews of every view".into(), preview_bytes));
-        }
-        memory.push(("images being encoded and written".into(), output_bytes));
-        Ok(Plan {
-            frames,
-            shard: opts.shard,
-            frame_list,
-            views,
-            eyes,
-            width,
-            height,
-            out,
-            viewer,
-            length_unit: length_unit(header),
-            passes,
-            variants,
-            variant_of,
-            auto_window,
-            frame,
-            sphere,
-            preview: (width.div_ceil(4).max(8), height.div_ceil(4).max(8)),
-            voxel_length,
-            volume_bytes: storage.allocated_bytes(),
-            storage,
-            precomputed_bytes,
-            transient_bytes,
-            film_bytes,
-            preview_bytes,
-            output_bytes,
-            animation_bytes,
-            memory,
-            threads,
-            samples_estimate,
-        })
     }
 
     /// Files written per frame and pass.
@@ -777,6 +724,126 @@ fn describe_keyframes(scene: &Scene) -> String {
             what.join(", ")
         }
     )
+}
+
+/// What the passes of a plan precompute ([`Plan::precomputations`]).
+struct Precomputations {
+    /// Bytes of every precomputed volume and table.
+    bytes: u64,
+    /// Bytes allocated only while the cubic prefilter runs.
+    transient: u64,
+    /// Bytes of the grids, their footprints and the tables.
+    small: u64,
+    /// The gradient volumes, one per estimator.
+    gradient_methods: Vec<crate::sample::GradientMethod>,
+    /// Whether cubic coefficients are computed.
+    cubic: bool,
+}
+
+/// Rejects what `scene` cannot render on a volume described by `header` with
+/// `opts`, at `size`, before anything is loaded: a degenerate volume, a crop
+/// outside it, frames outside the orbit, a GIF too large for the format, a
+/// turntable page over NRRD frames. The frames selected, or the message.
+fn check(
+    scene: &Scene,
+    header: &VolumeHeader,
+    opts: &RunOptions,
+    (width, height): (usize, usize),
+) -> Result<Range<usize>, String> {
+    if !header.geometry.is_valid() {
+        return Err(format!(
+            "the volume {} has degenerate axes (space directions or spacings are zero, non-finite or coplanar)",
+            header.source
+        ));
+    }
+    if let Some(crop) = scene.volume.crop {
+        for (a, (&[lo, hi], &n)) in crop.iter().zip(&header.sizes).enumerate() {
+            if hi >= n {
+                return Err(format!(
+                    "volume.crop: the {} range [{lo}, {hi}] is outside the volume's {n} voxels (0..={})",
+                    ["x", "y", "z"][a],
+                    n - 1
+                ));
+            }
+            debug_assert!(lo <= hi, "checked by the scene resolver");
+        }
+    }
+    let total = scene.orbit.frames;
+    let frames = match &opts.frames {
+        None => 0..total,
+        Some(r) if r.start < r.end && r.end <= total => r.clone(),
+        Some(r) => {
+            return Err(format!(
+                "frames {}..{} are not within the orbit's {total} frames (0..{total})",
+                r.start, r.end
+            ))
+        }
+    };
+    if let Some(a) = &scene.animation {
+        let file_width = match scene.stereo {
+            Some(s) if matches!(s.layout, Layout::SideBySide | Layout::CrossEyed) => {
+                2 * width + s.gap
+            }
+            _ => width,
+        };
+        if a.formats.contains(&crate::scene::AnimationFormat::Gif)
+            && file_width.max(height) > usize::from(u16::MAX)
+        {
+            return Err(format!(
+                "[animation] gif: GIF images are at most 65535 pixels wide and high, these frames are {file_width} x {height} (use formats = [\"apng\"] or a smaller size)"
+            ));
+        }
+    }
+    if (scene.viewer || opts.viewer) && scene.image.format == Format::Nrrd {
+        return Err(
+            "--viewer: the turntable page shows the PNG frames in a browser, and this scene writes nrrd (browsers cannot show it): use [image] format = \"png\" or \"png16\"".into(),
+        );
+    }
+    Ok(frames)
+}
+
+/// The eyes of each frame and their azimuth offsets (degrees).
+fn eyes(scene: &Scene) -> Vec<(Eye, f64)> {
+    match &scene.stereo {
+        None => vec![(Eye::Mono, 0.0)],
+        Some(s) if s.method == crate::scene::StereoMethod::ToeIn => vec![
+            (Eye::Left, -s.angle_deg / 2.0),
+            (Eye::Right, s.angle_deg / 2.0),
+        ],
+        Some(_) => vec![(Eye::Left, 0.0), (Eye::Right, 0.0)],
+    }
+}
+
+/// One render pass per scene pass, with the clip planes that apply to it.
+fn render_passes(
+    scene: &Scene,
+    header: &VolumeHeader,
+    voxel_length: f64,
+    sphere: (glam::DVec3, f64),
+    opts: &RunOptions,
+) -> Vec<RenderPass> {
+    let light = shade_light(scene, sphere.0);
+    scene
+        .passes
+        .iter()
+        .map(|p| {
+            let clips = scene
+                .clips
+                .iter()
+                .filter(|c| c.applies_to(&p.name))
+                .map(|c| c.plane())
+                .collect();
+            RenderPass::new(
+                p,
+                header.scalar_type,
+                voxel_length,
+                2.0 * sphere.1,
+                light,
+                !opts.no_skip,
+            )
+            .with_clips(clips)
+        })
+        .collect()
 }
 
 /// The passes each frame renders when keyframes animate pass values (iso,
