@@ -454,48 +454,45 @@ impl Plan {
     /// A human-readable description (what `volcast check` prints).
     pub fn describe(&self, scene: &Scene, header: &VolumeHeader) -> String {
         let mut s = String::new();
-        let [nx, ny, nz] = header.sizes;
-        let sp = header.geometry.spacings();
-        let _ = writeln!(s, "scene    {}", scene.path.display());
+        describe_volume(&mut s, scene, header);
+        self.describe_frames(&mut s, scene);
+        let _ = writeln!(s, "stereo   {}", crate::output::describe_stereo(scene));
+        let _ = writeln!(s, "views    {}", self.views.describe(&self.frame_list));
         let _ = writeln!(
             s,
-            "volume   {} ({nx} x {ny} x {nz} {}, spacing {:.4} {:.4} {:.4}, {})",
-            header.source,
-            header.scalar_type,
-            sp[0],
-            sp[1],
-            sp[2],
-            human_bytes(header.data_bytes())
+            "images   {} x {} {:?} -> {}/",
+            self.width,
+            self.height,
+            scene.image.format,
+            self.out.display()
         );
-        if !header.rescale.is_identity() {
+        let files = self.frame_list.len() * Self::files_per_frame(scene) * scene.passes.len();
+        let _ = writeln!(s, "passes   {} ({files} files)", scene.passes.len());
+        for ((p, rp), &auto) in scene.passes.iter().zip(&self.passes).zip(&self.auto_window) {
             let _ = writeln!(
                 s,
-                "values   {} * stored + {} (the volume's rescale, folded into the window: windows are values)",
-                header.rescale.slope, header.rescale.intercept
+                "  {:<12} {:<9} step {} voxels ({:.4} world), {}",
+                p.name,
+                p.mode.name(),
+                p.step_voxels,
+                rp.dt,
+                p.interpolation.name()
             );
-        }
-        match scene.volume.window {
-            Some([lo, hi]) => {
-                let units = match scene.volume.units {
-                    Units::Data { .. } => " (units = \"data\": the scene's values are data values)",
-                    Units::Normalised => "",
-                };
-                let _ = writeln!(s, "window   [{lo}, {hi}] -> [0, 1]{units}");
-            }
-            None => {
-                let _ = writeln!(
-                    s,
-                    "window   the data's min..max (read when the volume is loaded)"
-                );
+            for n in self.pass_notes(scene, header, p, rp, auto) {
+                let _ = writeln!(s, "               {n}");
             }
         }
-        if let Some(c) = scene.volume.crop {
-            let _ = writeln!(
-                s,
-                "crop     x {}..={}, y {}..={}, z {}..={} (rays are clipped to this box)",
-                c[0][0], c[0][1], c[1][0], c[1][1], c[2][0], c[2][1]
-            );
-        }
+        s.push_str(&crate::output::describe_outputs(
+            scene,
+            &self.out,
+            self.viewer,
+        ));
+        self.describe_memory(&mut s);
+        s
+    }
+
+    /// The frames line of [`Plan::describe`] (and the zoom's, when it fits).
+    fn describe_frames(&self, s: &mut String, scene: &Scene) {
         let shard = match self.shard {
             Some(sh) => format!(", shard {sh}: {} frames", self.frame_list.len()),
             None => String::new(),
@@ -532,125 +529,119 @@ impl Plan {
                 "zoom     \"fit\": frames the voxels at or above {t} (normalised) in every frame; computed when the voxels are loaded"
             );
         }
-        let _ = writeln!(s, "stereo   {}", crate::output::describe_stereo(scene));
-        let _ = writeln!(s, "views    {}", self.views.describe(&self.frame_list));
-        let _ = writeln!(
-            s,
-            "images   {} x {} {:?} -> {}/",
-            self.width,
-            self.height,
-            scene.image.format,
-            self.out.display()
-        );
-        let files = self.frame_list.len() * Self::files_per_frame(scene) * scene.passes.len();
-        let _ = writeln!(s, "passes   {} ({files} files)", scene.passes.len());
-        for ((p, rp), &auto) in scene.passes.iter().zip(&self.passes).zip(&self.auto_window) {
-            let _ = writeln!(
-                s,
-                "  {:<12} {:<9} step {} voxels ({:.4} world), {}",
-                p.name,
-                p.mode.name(),
-                p.step_voxels,
-                rp.dt,
-                p.interpolation.name()
-            );
-            let mut needs = Vec::new();
-            // the value a pass looks for, normalised and, under units = "data", as written
-            let units = scene.volume.units;
-            let both = |t: f64| match units {
-                Units::Data { .. } => format!("{t} (data value {})", units.show(t)),
-                Units::Normalised => format!("{t}"),
-            };
-            match p.mode {
-                Mode::Lmip { threshold } | Mode::Depth { threshold } => {
-                    needs.push(format!("threshold {}", both(threshold)));
+    }
+
+    /// What [`Plan::describe`] says under the line of pass `p` (`rp` its render
+    /// pass): the value it looks for, what it precomputes, its clip planes,
+    /// material, grey window and colour map.
+    fn pass_notes(
+        &self,
+        scene: &Scene,
+        header: &VolumeHeader,
+        p: &crate::scene::RenderPass,
+        rp: &RenderPass,
+        auto: bool,
+    ) -> Vec<String> {
+        let units = scene.volume.units;
+        let mut needs = self.mode_notes(units, p);
+        needs.extend(rp.describe(header.sizes));
+        for (k, c) in scene.clips.iter().enumerate() {
+            if c.applies_to(&p.name) {
+                let mut line = describe_clip(k, c, &p.mode);
+                if scene
+                    .keyframes
+                    .as_ref()
+                    .is_some_and(|kf| kf.clip_offsets.iter().any(|(q, _)| *q == k))
+                {
+                    line.push_str("; its offset is keyframed");
                 }
-                Mode::Surface { iso, .. } => needs.push(format!("iso value {}", both(iso))),
-                Mode::Mip { depth_cue, output } => {
-                    let d = 2.0 * self.sphere.1;
-                    if depth_cue > 0.0 {
-                        needs.push(format!(
-                            "depth cue {depth_cue}: each sample weighted by 1 - {depth_cue} s / {d:.4} (s = depth from the bounding sphere's entry, {d:.4} = its diameter)"
-                        ));
-                    }
-                    match output {
-                        MipOutput::Value => {}
-                        MipOutput::DepthOfMax => needs.push(
-                            "stores the depth s of the first sample reaching the maximum (NaN where the ray misses)".into(),
-                        ),
-                        MipOutput::DepthCoded(map) => {
-                            let [lo, hi] = p.window.unwrap_or([0.0, 1.0]);
-                            needs.push(format!(
-                                "depth-coded colour: {} from depth 0 to {d:.4}, brightness from the maximum over [{}, {}]",
-                                map.name(),
-                                both(lo),
-                                both(hi)
-                            ));
-                        }
-                    }
-                }
-                _ => {}
-            }
-            needs.extend(rp.describe(header.sizes));
-            for (k, c) in scene.clips.iter().enumerate() {
-                if c.applies_to(&p.name) {
-                    let mut line = describe_clip(k, c, &p.mode);
-                    if scene
-                        .keyframes
-                        .as_ref()
-                        .is_some_and(|kf| kf.clip_offsets.iter().any(|(q, _)| *q == k))
-                    {
-                        line.push_str("; its offset is keyframed");
-                    }
-                    needs.push(line);
-                }
-            }
-            if let Some(sh) = p.mode.shading() {
-                needs.push(format!("material {}", sh.material_name));
-            }
-            if auto {
-                needs.push(format!(
-                    "grey window from a {}x{} preview of every frame",
-                    self.preview.0, self.preview.1
-                ));
-            } else if let (Some([lo, hi]), false) = (p.window, rp.kind() == ImageKind::Rgba) {
-                let value_based = matches!(
-                    p.mode,
-                    Mode::Mip { .. } | Mode::Minip | Mode::Average | Mode::Lmip { .. }
-                );
-                if value_based && units != Units::Normalised {
-                    needs.push(format!(
-                        "grey window [{lo}, {hi}] (data values [{}, {}])",
-                        units.show(lo),
-                        units.show(hi)
-                    ));
-                } else {
-                    needs.push(format!("grey window [{lo}, {hi}]"));
-                }
-            }
-            if let (Some(map), true) = (p.colormap, scene.image.format != Format::Nrrd) {
-                needs.push(format!(
-                    "colour map {}: the windowed grey level {} (PNG in RGB; rays without a value show the background)",
-                    map.name(),
-                    if rp.kind() == ImageKind::Depth {
-                        "(near bright) through it"
-                    } else {
-                        "through it"
-                    }
-                ));
-            }
-            if needs.is_empty() {
-                needs.push("nothing precomputed".into());
-            }
-            for n in needs {
-                let _ = writeln!(s, "               {n}");
+                needs.push(line);
             }
         }
-        s.push_str(&crate::output::describe_outputs(
-            scene,
-            &self.out,
-            self.viewer,
-        ));
+        if let Some(sh) = p.mode.shading() {
+            needs.push(format!("material {}", sh.material_name));
+        }
+        if auto {
+            needs.push(format!(
+                "grey window from a {}x{} preview of every frame",
+                self.preview.0, self.preview.1
+            ));
+        } else if let (Some([lo, hi]), false) = (p.window, rp.kind() == ImageKind::Rgba) {
+            let value_based = matches!(
+                p.mode,
+                Mode::Mip { .. } | Mode::Minip | Mode::Average | Mode::Lmip { .. }
+            );
+            if value_based && units != Units::Normalised {
+                needs.push(format!(
+                    "grey window [{lo}, {hi}] (data values [{}, {}])",
+                    units.show(lo),
+                    units.show(hi)
+                ));
+            } else {
+                needs.push(format!("grey window [{lo}, {hi}]"));
+            }
+        }
+        if let (Some(map), true) = (p.colormap, scene.image.format != Format::Nrrd) {
+            needs.push(format!(
+                "colour map {}: the windowed grey level {} (PNG in RGB; rays without a value show the background)",
+                map.name(),
+                if rp.kind() == ImageKind::Depth {
+                    "(near bright) through it"
+                } else {
+                    "through it"
+                }
+            ));
+        }
+        if needs.is_empty() {
+            needs.push("nothing precomputed".into());
+        }
+        needs
+    }
+
+    /// What [`Plan::describe`] says of a pass's mode: the threshold or iso value it
+    /// looks for (normalised and, under `units = "data"`, as written), and a MIP's
+    /// depth cue and output.
+    fn mode_notes(&self, units: Units, p: &crate::scene::RenderPass) -> Vec<String> {
+        let mut needs = Vec::new();
+        let both = |t: f64| match units {
+            Units::Data { .. } => format!("{t} (data value {})", units.show(t)),
+            Units::Normalised => format!("{t}"),
+        };
+        match p.mode {
+            Mode::Lmip { threshold } | Mode::Depth { threshold } => {
+                needs.push(format!("threshold {}", both(threshold)));
+            }
+            Mode::Surface { iso, .. } => needs.push(format!("iso value {}", both(iso))),
+            Mode::Mip { depth_cue, output } => {
+                let d = 2.0 * self.sphere.1;
+                if depth_cue > 0.0 {
+                    needs.push(format!(
+                        "depth cue {depth_cue}: each sample weighted by 1 - {depth_cue} s / {d:.4} (s = depth from the bounding sphere's entry, {d:.4} = its diameter)"
+                    ));
+                }
+                match output {
+                    MipOutput::Value => {}
+                    MipOutput::DepthOfMax => needs.push(
+                        "stores the depth s of the first sample reaching the maximum (NaN where the ray misses)".into(),
+                    ),
+                    MipOutput::DepthCoded(map) => {
+                        let [lo, hi] = p.window.unwrap_or([0.0, 1.0]);
+                        needs.push(format!(
+                            "depth-coded colour: {} from depth 0 to {d:.4}, brightness from the maximum over [{}, {}]",
+                            map.name(),
+                            both(lo),
+                            both(hi)
+                        ));
+                    }
+                }
+            }
+            _ => {}
+        }
+        needs
+    }
+
+    /// The memory and samples lines of [`Plan::describe`].
+    fn describe_memory(&self, s: &mut String) {
         let mut parts: Vec<String> = Vec::new();
         if let crate::volume::Storage::Mapped { path, bytes, .. } = &self.storage {
             parts.push(format!(
@@ -677,7 +668,52 @@ impl Plan {
             parts.join("; ")
         );
         let _ = write!(s, "samples  at most about {:.3e}", self.samples_estimate);
-        s
+    }
+}
+
+/// The scene, volume, value, window and crop lines of [`Plan::describe`].
+fn describe_volume(s: &mut String, scene: &Scene, header: &VolumeHeader) {
+    let [nx, ny, nz] = header.sizes;
+    let sp = header.geometry.spacings();
+    let _ = writeln!(s, "scene    {}", scene.path.display());
+    let _ = writeln!(
+        s,
+        "volume   {} ({nx} x {ny} x {nz} {}, spacing {:.4} {:.4} {:.4}, {})",
+        header.source,
+        header.scalar_type,
+        sp[0],
+        sp[1],
+        sp[2],
+        human_bytes(header.data_bytes())
+    );
+    if !header.rescale.is_identity() {
+        let _ = writeln!(
+            s,
+            "values   {} * stored + {} (the volume's rescale, folded into the window: windows are values)",
+            header.rescale.slope, header.rescale.intercept
+        );
+    }
+    match scene.volume.window {
+        Some([lo, hi]) => {
+            let units = match scene.volume.units {
+                Units::Data { .. } => " (units = \"data\": the scene's values are data values)",
+                Units::Normalised => "",
+            };
+            let _ = writeln!(s, "window   [{lo}, {hi}] -> [0, 1]{units}");
+        }
+        None => {
+            let _ = writeln!(
+                s,
+                "window   the data's min..max (read when the volume is loaded)"
+            );
+        }
+    }
+    if let Some(c) = scene.volume.crop {
+        let _ = writeln!(
+            s,
+            "crop     x {}..={}, y {}..={}, z {}..={} (rays are clipped to this box)",
+            c[0][0], c[0][1], c[1][0], c[1][1], c[2][0], c[2][1]
+        );
     }
 }
 
