@@ -777,7 +777,7 @@ struct Precomputations {
 }
 
 /// Rejects what `scene` cannot render on a volume described by `header` with
-/// `opts`, at `size`, before anything is loaded: a degenerate volume, a crop
+/// `opts`, at `(width, height)`, before anything is loaded: a degenerate volume, a crop
 /// outside it, frames outside the orbit, a GIF too large for the format, a
 /// turntable page over NRRD frames. The frames selected, or the message.
 fn check(
