@@ -35,7 +35,7 @@ pub enum Support {
     Linear,
     /// Nearest and trilinear for the modes that need no exact zeros: the cell's own
     /// corner voxels only, the range widened by `ROUND_OFF_REACH` instead (see
-    /// [`Support::cell_range`]). Often far narrower at the edge of an object (a
+    /// `Support::cell_range`). Often far narrower at the edge of an object (a
     /// window of 9^3 voxels instead of 11^3).
     LinearTight,
     /// [`Support::LinearTight`], with the ranges of each macrocell's eight octants
@@ -380,7 +380,7 @@ impl MacroGrid {
     /// Whether the ranges bound the samples of a ray from `o` along `d` (index
     /// space) between `t_enter` and `t_exit`: of any ray, unless the grid is of
     /// [`Support::LinearTight`] or [`Support::LinearOctants`], whose ranges hold for the rays of
-    /// [`rounds_off_inside`].
+    /// `rounds_off_inside`.
     #[inline(always)]
     pub fn bounds(&self, o: [f64; 3], d: [f64; 3], t_enter: f64, t_exit: f64) -> bool {
         self.any_ray || rounds_off_inside(o, d, t_enter, t_exit)

@@ -238,7 +238,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
 
     /// The grid, told that every voxel lies in [0, 1] (no NaN) while the window is
     /// [0, 1]: normalising each voxel is then the identity, and the vector paths
-    /// read float32 voxels as they are ([`avx2::Gather::Float32Bare`]), with the
+    /// read float32 voxels as they are (`avx2::Gather::Float32Bare`), with the
     /// same bits as when they clamp them. A grid of another type or window is
     /// returned unchanged. The caller checks the voxels
     /// ([`Voxels::all_in_unit_interval`](crate::volume::Voxels::all_in_unit_interval)):

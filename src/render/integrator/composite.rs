@@ -205,7 +205,7 @@ impl Composite {
     /// Marks the macrocells of `grid` over whose values the transfer function is
     /// transparent (found in O(1) per cell from a prefix count of the table's
     /// entries that are not), and keeps the count for the parts of cells
-    /// ([`Composite::transparent_over`]).
+    /// (`Composite::transparent_over`).
     pub fn classify(&mut self, grid: &MacroGrid) {
         let opaque = self.tables.opaque_entries();
         let mut prefix = Vec::with_capacity(opaque.len() + 1);

@@ -411,7 +411,7 @@ impl Integrand for Mip {
     /// Cells of zeros (whose samples are all zero): a ray's maximum is the same
     /// without those in front of and behind its other cells, as they are passed
     /// over once any sample is taken, and a ray that meets no other cell has the
-    /// maximum of its first sample ([`extremum`]).
+    /// maximum of its first sample (`extremum`).
     fn window_passes(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
         Some(range[0] >= 0.0 && range[1] <= 0.0)
     }

@@ -29,7 +29,7 @@ impl Integrand for Xray {
         [finish(0.0, self.output, 1.0), 0.0, 0.0, 0.0]
     }
 
-    /// All-zero cells, as [`Trapezoid`] passes over them.
+    /// All-zero cells, as `Trapezoid` passes over them.
     fn fixed_skippable(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
         Some(skippable(range))
     }
