@@ -377,13 +377,24 @@ fn brightest_first<F: Field, C: Ranked>(
     };
     let mut taken = 0u64;
     let mut batch = Batch::default();
+    // the span last sampled and its end: a span sampled right after the one before
+    // it starts where that one ended
+    let mut last = (usize::MAX, 0);
     let mut sample = |e: &mut C, s: usize, earlier: bool| {
         let range = grid.range(spans[s].1 as usize);
         if (earlier && e.skippable_earlier(range)) || (!earlier && e.skippable(0, range)) {
             return;
         }
-        let a = if s == 0 { 0 } else { end(s - 1) };
-        let mut b = end(s).max(a);
+        let a = if s == 0 {
+            0
+        } else if last.0 == s - 1 {
+            last.1
+        } else {
+            end(s - 1)
+        };
+        let b_end = end(s);
+        last = (s, b_end);
+        let mut b = b_end.max(a);
         if e.first_settles(e.rank(range)) {
             // a cell of zeros, sampled only while nothing has been (as the one a
             // window starts in, with every sample in front of it): its first
