@@ -241,8 +241,8 @@ fn cases(opts: &Options, nfields: usize, fog: Option<usize>) -> Vec<Case> {
                 "mode = \"composite\"\ntransfer = \"{tf}\"\nreference_step = 1.0\nearly_stop = 1.0"
             );
             let truth = format!("composite-{tf}");
+            let stop = |e: f64| base.replace("early_stop = 1.0", &format!("early_stop = {e}"));
             for &s in steps {
-                let stop = |e: f64| base.replace("early_stop = 1.0", &format!("early_stop = {e}"));
                 for (method, k) in [
                     ("sampled", base.clone()),
                     ("jitter", format!("{base}\njitter = true")),
