@@ -540,18 +540,18 @@ impl Walk<'_> {
         let grid = self.grid;
         let (o, d, inv) = (self.o, ray.d.to_array(), self.inv);
         let (t0, t1) = (span.t0, span.t1);
-        // the span's cell: the walk's, one step back along the axis it stepped
-        let mut at = self.cell;
-        if let Some(&step) = self.step.get(usize::from(self.stepped)) {
-            at[usize::from(self.stepped)] -= step;
-        }
+        let stepped = usize::from(self.stepped);
         let mut mid = [0.0f64; 3];
         let mut cuts = [0.0f64; 3];
         let mut k = 0;
         // in i64, whose conversion to f64 is one instruction (a u64's is several)
         let m = MACROCELL as i64;
         for a in 0..3 {
-            let c = at[a].clamp(0, grid.dims[a] as i64 - 1);
+            // the span's cell: the walk's, one step back along the axis it stepped
+            // (read axis by axis: the walk has just stored them one by one, and a
+            // load of two at once would wait for both stores to reach the cache)
+            let back = if a == stepped { self.step[a] } else { 0 };
+            let c = (self.cell[a] - back).clamp(0, grid.dims[a] as i64 - 1);
             let hi = ((c + 1) * m).min(grid.n[a] as i64 - 1);
             mid[a] = (c * m + m / 2).min(hi) as f64;
             if inv[a] != 0.0 {
