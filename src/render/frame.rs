@@ -102,9 +102,13 @@ impl<'a, F: Field, I: Integrand> Kernel<'a, F, I> {
 
     /// Per tile of `view`, the part of the rays a macrocell walk must cover: for
     /// integrands that say which cells a walk may leave out
-    /// ([`Integrand::window_passes`]), on passes that skip.
+    /// ([`Integrand::window_passes`]), on passes that skip (and that have no
+    /// clipping planes, for integrands whose answers do not hold on clipped rays).
     fn windows(&self, view: &View, frame: &IndexFrame) -> Option<Windows> {
         let grid = self.grid?;
+        if !self.clips.is_empty() && !self.integrand.windows_hold_when_clipped() {
+            return None;
+        }
         let footprint = self.footprint.get_or_init(|| {
             // an integrand answers `None` for every cell or for none
             self.integrand.window_passes(0, grid.range(0))?;
@@ -421,6 +425,57 @@ mod tests {
             }
         }
         assert!(taken > 0 && taken * 3 < nominal * 2, "{taken} of {nominal}");
+    }
+
+    /// Iso-surface and depth passes without clipping planes walk only their
+    /// windows (the cells that can reach the level): every pixel and every sample
+    /// of the whole walks, at two levels, in every view, and the windows leave
+    /// rays out. With a clipping plane (a ray entering through it inside the
+    /// object searches falling) the passes have no windows.
+    #[test]
+    fn windowed_crossings_give_every_pixel_of_the_whole_walks() {
+        use crate::render::integrator::{Depth, Surface};
+        use crate::render::ClipPlane;
+        use crate::shade::{Light, Material, Model, Shader};
+        let (n, v) = blobs(false);
+        let grid = MacroGrid::from_values(n, Support::LinearTight, |i| v[i]);
+        let (frame, views, m) = window_test_views(n);
+        let field = blob_field(&v, n, m, Interpolation::Trilinear);
+        let shader = Shader {
+            model: Model::Phong,
+            material: Material::preset("gold").expect("gold is a preset"),
+            light: Light::headlight(),
+        };
+        let clips = [ClipPlane {
+            point: DVec3::new(19.0, 17.0, 15.0),
+            normal: DVec3::X,
+            cap: false,
+        }];
+        let mut taken = 0;
+        for level in [0.2, 0.6] {
+            let surface = Surface { iso: level, shader };
+            let depth = Depth { threshold: level };
+            let s = Kernel::new(&field, surface, Some(&grid), 0.37, None, &[]);
+            let d = Kernel::new(&field, depth, Some(&grid), 0.37, None, &[]);
+            let cut = Kernel::new(&field, surface, Some(&grid), 0.37, None, &clips);
+            let cut_depth = Kernel::new(&field, depth, Some(&grid), 0.37, None, &clips);
+            for (k, view) in views.iter().enumerate() {
+                taken += same_as_whole_walks(&s, view, &frame);
+                same_as_whole_walks(&d, view, &frame);
+                let w = s
+                    .windows(view, &frame)
+                    .expect("surface passes have windows");
+                assert!(
+                    d.windows(view, &frame).is_some(),
+                    "depth passes have windows"
+                );
+                // (from inside the volume, the cell around the eye covers the image)
+                assert!(k == 4 || empty_windows(&w, view) > 0, "{view:?}");
+                assert!(cut.windows(view, &frame).is_none());
+                assert!(cut_depth.windows(view, &frame).is_none());
+            }
+        }
+        assert!(taken > 0);
     }
 
     /// MIP's walks limited to the windows of its cells that are not all zero

@@ -149,11 +149,18 @@ impl<F: Field> FirstCrossing<'_, F> {
     }
 }
 
+/// Whether every value of `range` lies below `level`: a macrocell that a rising
+/// search for `level` passes over.
+#[inline(always)]
+fn below(range: [f32; 2], level: f32) -> bool {
+    range[1] < level
+}
+
 impl<F: Field> Consumer for FirstCrossing<'_, F> {
     #[inline(always)]
     fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
         if self.rising {
-            range[1] < self.level
+            below(range, self.level)
         } else {
             range[0] >= self.level
         }
@@ -254,6 +261,18 @@ fn refine<F: Field>(
 }
 
 impl Integrand for Depth {
+    /// Cells whose values all lie below the level, which a rising search passes
+    /// over ([`FirstCrossing`]).
+    fn window_passes(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
+        Some(below(range, self.threshold))
+    }
+
+    /// False: a ray that enters inside the object through a cut searches for the
+    /// level falling, and passes over other cells.
+    fn windows_hold_when_clipped(&self) -> bool {
+        false
+    }
+
     fn channels(&self) -> usize {
         1
     }
@@ -272,6 +291,18 @@ impl Integrand for Depth {
 }
 
 impl Integrand for Surface {
+    /// Cells whose values all lie below the level, which a rising search passes
+    /// over ([`FirstCrossing`]).
+    fn window_passes(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
+        Some(below(range, self.iso))
+    }
+
+    /// False: a ray that enters inside the object through a cut searches for the
+    /// level falling, and passes over other cells.
+    fn windows_hold_when_clipped(&self) -> bool {
+        false
+    }
+
     fn channels(&self) -> usize {
         4
     }
