@@ -262,7 +262,7 @@ fn refine<F: Field>(
 
 impl Integrand for Depth {
     /// Cells whose values all lie below the level, which a rising search passes
-    /// over ([`FirstCrossing`]).
+    /// over (`FirstCrossing`).
     fn window_passes(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
         Some(below(range, self.threshold))
     }
@@ -292,7 +292,7 @@ impl Integrand for Depth {
 
 impl Integrand for Surface {
     /// Cells whose values all lie below the level, which a rising search passes
-    /// over ([`FirstCrossing`]).
+    /// over (`FirstCrossing`).
     fn window_passes(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
         Some(below(range, self.iso))
     }
