@@ -9,10 +9,10 @@
 //! would pass over every cell anyway. MIP's walks cover the part where a cell that
 //! is not all zero can lie ([`Integrand::window_passes`](super::integrator::Integrand::window_passes)):
 //! the zeros outside it cannot raise a maximum. Iso-surface and depth passes
-//! without clipping planes cover the part where a cell that can reach the level
-//! lies: a ray's search for the first crossing passes over the cells below it (a
-//! ray that enters through a cut inside the object searches for the level falling,
-//! so clipped passes walk whole rays). [`Footprint`] holds the boxes of those cells (index space,
+//! cover the part where a cell that can reach the level lies: a ray's search for
+//! the first crossing passes over the cells below it (a ray that enters through a
+//! cut inside the object searches for the level falling, and walks its whole
+//! ray). [`Footprint`] holds the boxes of those cells (index space,
 //! merged into blocks on large grids); [`Footprint::windows`] projects them into a
 //! view and gives each tile of pixels the interval of `t` its rays need, widened by
 //! a voxel for round-off. The walk ([`drive`](super::integrator::drive)) then starts

@@ -205,6 +205,19 @@ fn first_crossing<F: Field>(
     level: f32,
     rising: bool,
 ) -> (Option<f64>, Counts) {
+    // a falling search (a ray entering through a cut inside the object) passes over
+    // the cells above the level, which the ray's window, the part where a cell that
+    // can reach the level lies, does not bound: it walks the whole ray
+    let whole;
+    let ray = if rising {
+        ray
+    } else {
+        whole = PixelRay {
+            walk: [ray.t_enter, ray.t_exit],
+            ..*ray
+        };
+        &whole
+    };
     let mut c = FirstCrossing {
         field,
         ray,
@@ -262,15 +275,9 @@ fn refine<F: Field>(
 
 impl Integrand for Depth {
     /// Cells whose values all lie below the level, which a rising search passes
-    /// over (`FirstCrossing`).
+    /// over (`FirstCrossing`; a falling one walks its whole ray).
     fn window_passes(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
         Some(below(range, self.threshold))
-    }
-
-    /// False: a ray that enters inside the object through a cut searches for the
-    /// level falling, and passes over other cells.
-    fn windows_hold_when_clipped(&self) -> bool {
-        false
     }
 
     fn channels(&self) -> usize {
@@ -292,15 +299,9 @@ impl Integrand for Depth {
 
 impl Integrand for Surface {
     /// Cells whose values all lie below the level, which a rising search passes
-    /// over (`FirstCrossing`).
+    /// over (`FirstCrossing`; a falling one walks its whole ray).
     fn window_passes(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
         Some(below(range, self.iso))
-    }
-
-    /// False: a ray that enters inside the object through a cut searches for the
-    /// level falling, and passes over other cells.
-    fn windows_hold_when_clipped(&self) -> bool {
-        false
     }
 
     fn channels(&self) -> usize {

@@ -119,14 +119,6 @@ pub trait Integrand: Sync {
         self.fixed_skippable(cell, range)
     }
 
-    /// Whether the answers of [`Integrand::window_passes`] also hold for rays that
-    /// enter through a clipping plane. True unless overridden: the answers are
-    /// about cells alone. The crossing searches ask another question of the cells
-    /// on a ray that enters inside the object through a cut.
-    fn windows_hold_when_clipped(&self) -> bool {
-        true
-    }
-
     /// Integrates one ray sampled at `march` (exact integrands ignore it), passing
     /// over empty space with `grid` when given. Returns the pixel value and the
     /// samples taken.
