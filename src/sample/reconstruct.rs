@@ -327,6 +327,11 @@ fn bspline_gradient(n: [usize; 3], p: DVec3, get: impl Fn(usize, usize, usize) -
 /// Mirror-boundary index (…, 2, 1, 0, 1, 2, …, n-1, n-2, …).
 #[inline(always)]
 fn mirror(i: isize, n: usize) -> usize {
+    // inside the grid, as all but a sample's edge indices are: the index itself,
+    // without the remainder's integer division
+    if (i as usize) < n {
+        return i as usize;
+    }
     if n < 2 {
         return 0;
     }
@@ -379,4 +384,31 @@ fn bspline_weights(x: f64, n: usize) -> ([usize; 4], [f64; 4]) {
         ],
         w,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::mirror;
+
+    /// The mirror index, with its shortcut inside the grid, is the reflection of
+    /// `i` about `0` and `n - 1` repeated (period `2 (n - 1)`), for indices far
+    /// outside the grid on both sides, and `0` for grids of one voxel or none.
+    #[test]
+    fn mirror_reflects_about_both_ends() {
+        for n in 0..7usize {
+            for i in -20isize..20 {
+                let want = if n < 2 {
+                    0
+                } else {
+                    let period = 2 * (n as isize - 1);
+                    let m = i.rem_euclid(period);
+                    (if m >= n as isize { period - m } else { m }) as usize
+                };
+                assert_eq!(mirror(i, n), want, "i = {i}, n = {n}");
+            }
+        }
+        // one step outside each end
+        assert_eq!(mirror(-1, 5), 1);
+        assert_eq!(mirror(5, 5), 3);
+    }
 }
