@@ -138,7 +138,19 @@ impl Field for Cubic<'_> {
     #[inline]
     fn value(&self, p: DVec3) -> f32 {
         let (c, sx, sxy) = (self.coefficients, self.n[0], self.n[0] * self.n[1]);
-        bspline(self.n, p, |i, j, k| c[i + sx * j + sxy * k])
+        let voxels = self.n[0]
+            .checked_mul(self.n[1])
+            .and_then(|m| m.checked_mul(self.n[2]));
+        if c.is_empty() || voxels != Some(c.len()) {
+            // no coefficients, or those of another grid: bounds-checked reads
+            return bspline(self.n, p, |i, j, k| c[i + sx * j + sxy * k]);
+        }
+        // SAFETY: every axis has at least one voxel (`c` holds their product, not
+        // zero), and `bspline` asks only for indices from `mirror`, which are then
+        // below their axis' size: `i + sx j + sxy k <= sxy n[2] - 1 < c.len()`
+        bspline(self.n, p, |i, j, k| unsafe {
+            *c.get_unchecked(i + sx * j + sxy * k)
+        })
     }
 
     fn gradient(&self, p: DVec3) -> DVec3 {
@@ -324,7 +336,8 @@ fn bspline_gradient(n: [usize; 3], p: DVec3, get: impl Fn(usize, usize, usize) -
     g
 }
 
-/// Mirror-boundary index (…, 2, 1, 0, 1, 2, …, n-1, n-2, …).
+/// Mirror-boundary index (…, 2, 1, 0, 1, 2, …, n-1, n-2, …): always below `n`
+/// for `n >= 1` (the unchecked reads of [`Cubic`] rely on it), 0 for `n` of 0 or 1.
 #[inline(always)]
 fn mirror(i: isize, n: usize) -> usize {
     // inside the grid, as all but a sample's edge indices are: the index itself,
@@ -405,6 +418,8 @@ mod tests {
                     (if m >= n as isize { period - m } else { m }) as usize
                 };
                 assert_eq!(mirror(i, n), want, "i = {i}, n = {n}");
+                // what `Cubic`'s unchecked reads rely on
+                assert!(mirror(i, n) < n.max(1));
             }
         }
         // one step outside each end
