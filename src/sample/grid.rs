@@ -615,9 +615,34 @@ impl<'a> Gradients<'a> {
 
     /// The world gradient at `p`: the voxel gradients trilinearly interpolated.
     pub fn interpolated<T: Voxel>(&self, grid: &Grid<T>, p: DVec3) -> DVec3 {
-        let (i0, i1, fx) = cell(p.x, grid.n[0]);
-        let (j0, j1, fy) = cell(p.y, grid.n[1]);
-        let (k0, k1, fz) = cell(p.z, grid.n[2]);
+        // without a gradient volume, a Sobel estimate at each of the cell's eight
+        // corners reads 54 voxels, all within the 4^3 voxels around the cell: those
+        // are read once, and each corner's estimate reads them from there (the same
+        // values, so the same bits)
+        if self.volume.is_none() && self.method == GradientMethod::Sobel {
+            let x = p.to_array();
+            let first = [0, 1, 2].map(|a| cell(x[a], grid.n[a]).0);
+            let block = Neighbourhood::read(grid, first);
+            return self.interpolate(grid.n, p, |i, j, k| {
+                filter::grid_gradient(self.method, grid.n, [i, j, k], |a, b, c| block.at(a, b, c))
+            });
+        }
+        self.interpolate(grid.n, p, |i, j, k| self.at_voxel(grid, i, j, k))
+    }
+
+    /// The index-space gradients `corner` gives at the corners of the cell of `p`
+    /// (in a grid of `n` voxels), trilinearly interpolated (corners of weight zero
+    /// left out), and taken to world space.
+    #[inline(always)]
+    fn interpolate(
+        &self,
+        n: [usize; 3],
+        p: DVec3,
+        corner: impl Fn(usize, usize, usize) -> [f32; 3],
+    ) -> DVec3 {
+        let (i0, i1, fx) = cell(p.x, n[0]);
+        let (j0, j1, fy) = cell(p.y, n[1]);
+        let (k0, k1, fz) = cell(p.z, n[2]);
         let mut g = [0.0f64; 3];
         for (k, wk) in [(k0, 1.0 - fz), (k1, fz)] {
             for (j, wj) in [(j0, 1.0 - fy), (j1, fy)] {
@@ -626,7 +651,7 @@ impl<'a> Gradients<'a> {
                     if w == 0.0 {
                         continue;
                     }
-                    let v = self.at_voxel(grid, i, j, k);
+                    let v = corner(i, j, k);
                     for a in 0..3 {
                         g[a] += w * v[a] as f64;
                     }
@@ -634,6 +659,39 @@ impl<'a> Gradients<'a> {
             }
         }
         self.world_from_index * DVec3::from_array(g)
+    }
+}
+
+/// The normalised voxels (indices clamped to the grid) of the 4^3 block from one
+/// voxel before a cell's first corner to one after its last, which hold every
+/// voxel a grid gradient estimate at the cell's corners reads.
+struct Neighbourhood {
+    origin: [isize; 3],
+    v: [[[f32; 4]; 4]; 4],
+}
+
+impl Neighbourhood {
+    /// The block around the cell whose first corner is `c`.
+    fn read<T: Voxel>(grid: &Grid<T>, c: [usize; 3]) -> Neighbourhood {
+        let origin = c.map(|x| x as isize - 1);
+        let mut v = [[[0.0f32; 4]; 4]; 4];
+        for (dz, plane) in v.iter_mut().enumerate() {
+            for (dy, row) in plane.iter_mut().enumerate() {
+                for (dx, x) in row.iter_mut().enumerate() {
+                    let [a, b, c] = origin;
+                    *x = grid.voxel_clamped(a + dx as isize, b + dy as isize, c + dz as isize);
+                }
+            }
+        }
+        Neighbourhood { origin, v }
+    }
+
+    /// The voxel at `(i, j, k)` with its indices clamped to the grid, as
+    /// [`Grid::voxel_clamped`] reads it (for indices within the block).
+    #[inline(always)]
+    fn at(&self, i: isize, j: isize, k: isize) -> f32 {
+        let [a, b, c] = self.origin;
+        self.v[(k - c) as usize][(j - b) as usize][(i - a) as usize]
     }
 }
 
@@ -660,6 +718,44 @@ pub(super) fn cell(x: f64, n: usize) -> (usize, usize, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Sobel gradients on the fly, each corner's estimate read from the cell's 4^3
+    /// neighbourhood, are the bits of each corner's estimate read from the grid
+    /// (`Gradients::at_voxel`) interpolated as before: at points inside, on the
+    /// faces, edges and corners, beyond the grid, in grids with an axis of one or
+    /// two voxels.
+    #[test]
+    fn sobel_gradients_from_the_neighbourhood_are_those_from_the_grid() {
+        for n in [[6usize, 5, 4], [1, 5, 4], [6, 1, 1], [2, 2, 3]] {
+            let len = n[0] * n[1] * n[2];
+            let values: Vec<f32> = (0..len)
+                .map(|i| ((i * 7919 % 101) as f32 / 101.0).powi(2))
+                .collect();
+            let norm = Normalize::new(0.0, 1.0);
+            let lut = normalisation_table::<f32>(norm);
+            let grid = Grid::new(Voxels::from_slice(&values), n, norm, &lut);
+            let m = DMat3::from_diagonal(DVec3::new(1.0, 0.8, 1.3));
+            let g = Gradients::new(GradientMethod::Sobel, None, m);
+            // each corner's estimate read from the grid
+            let reference = |p: DVec3| g.interpolate(n, p, |i, j, k| g.at_voxel(&grid, i, j, k));
+            let mut checked = 0;
+            for x in [-1.0, 0.0, 0.3, 1.0, 2.5, 4.99, 5.0, 7.0] {
+                for y in [-0.5, 0.0, 1.7, 3.2, 4.0, 6.0] {
+                    for z in [0.0, 0.45, 1.5, 2.9, 3.0, 9.0] {
+                        let p = DVec3::new(x, y, z);
+                        let (got, want) = (g.interpolated(&grid, p), reference(p));
+                        assert_eq!(
+                            got.to_array().map(f64::to_bits),
+                            want.to_array().map(f64::to_bits),
+                            "{p} in {n:?}"
+                        );
+                        checked += usize::from(want != DVec3::ZERO);
+                    }
+                }
+            }
+            assert!(checked > 0, "{n:?}: every gradient zero");
+        }
+    }
 
     /// Each window's range from `row_ranges` is that of its voxels normalised one
     /// by one: NaN (as 0), infinities, signed zeros, increasing and decreasing
