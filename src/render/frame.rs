@@ -425,9 +425,10 @@ mod tests {
 
     /// Iso-surface and depth passes walk only their windows (the cells that can
     /// reach the level): every pixel and every sample of the whole walks, at two
-    /// levels and two steps, in every view, without clipping planes and with one through the
-    /// middle of a blob, capped and not (the rays that enter through it inside the
-    /// blob search falling and walk whole), and the windows leave rays out.
+    /// levels and two steps, in every view, without clipping planes and with one
+    /// through the middle of a blob, capped and not (the rays that enter through
+    /// it inside the blob search falling and walk whole), and the windows leave
+    /// rays out.
     #[test]
     fn windowed_crossings_give_every_pixel_of_the_whole_walks() {
         use crate::render::integrator::{Depth, Surface};
@@ -451,8 +452,8 @@ mod tests {
         };
         let clip_sets = [vec![], vec![cut(false)], vec![cut(true)]];
         let mut taken = 0;
-        // (a step of 2.5 voxels puts the sample after a falling crossing beyond the
-        // window, which is widened by one voxel, on some rays)
+        // (a fine step and one longer than a macrocell's half, at which a span
+        // holds few samples)
         for (level, dt) in [(0.2, 0.37), (0.6, 0.37), (0.2, 2.5), (0.6, 2.5)] {
             let surface = Surface { iso: level, shader };
             let depth = Depth { threshold: level };
