@@ -452,8 +452,7 @@ mod tests {
         };
         let clip_sets = [vec![], vec![cut(false)], vec![cut(true)]];
         let mut taken = 0;
-        // (a fine step and one longer than a macrocell's half, at which a span
-        // holds few samples)
+        // (a fine step, and a coarse one: a few samples per macrocell)
         for (level, dt) in [(0.2, 0.37), (0.6, 0.37), (0.2, 2.5), (0.6, 2.5)] {
             let surface = Surface { iso: level, shader };
             let depth = Depth { threshold: level };
