@@ -466,8 +466,8 @@ mod tests {
     /// `Cubic::value` (which reads the four coefficients of a row at once where
     /// the x indices are inside the grid) gives the bits of [`bspline`] reading
     /// them one by one: at positions inside, near and on the faces and beyond, in
-    /// grids with axes of one to four voxels, with coefficients of both signs and
-    /// negative zeros.
+    /// grids whose axes have one to seven voxels, with coefficients of both signs
+    /// and negative zeros.
     #[test]
     fn row_reads_give_the_bits_of_single_reads() {
         for n in [[7usize, 6, 5], [4, 4, 4], [1, 5, 3], [5, 1, 1], [2, 3, 6]] {
