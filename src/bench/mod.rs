@@ -325,20 +325,14 @@ impl Report {
         self.sampled_table(&mut s, &fields, &steps);
         self.filters_table(&mut s, &fields, mid);
         self.surfaces_table(&mut s, &fields, mid);
-        let _ = writeln!(s, "\n**Compositing** (transfer functions `ramp` and the narrow peak `narrow`): RMS error of premultiplied colour and opacity, sampled / jittered / pre-integrated.\n");
-        self.composite_table(
-            &mut s,
-            &fields,
-            &steps,
-            ["sampled", "jitter", "preintegrated"],
-        );
-        let _ = writeln!(s, "\n**Early termination** (compositing, sampled trilinear): RMS error of premultiplied colour and opacity with `early_stop` 1.0 (no early stop) / 0.995 / 0.99.\n");
-        self.composite_table(
-            &mut s,
-            &fields,
-            &steps,
-            ["sampled", "early 0.995", "early 0.99"],
-        );
+        let tables = [
+            ("**Compositing** (transfer functions `ramp` and the narrow peak `narrow`): RMS error of premultiplied colour and opacity, sampled / jittered / pre-integrated.", ["sampled", "jitter", "preintegrated"]),
+            ("**Early termination** (compositing, sampled trilinear): RMS error of premultiplied colour and opacity with `early_stop` 1.0 (no early stop) / 0.995 / 0.99.", ["sampled", "early 0.995", "early 0.99"]),
+        ];
+        for (heading, methods) in tables {
+            let _ = writeln!(s, "\n{heading}\n");
+            self.composite_table(&mut s, &fields, &steps, methods);
+        }
         self.reconstruction_table(&mut s);
         self.normals_table(&mut s);
         s
