@@ -528,13 +528,13 @@ impl RenderPass {
                     .coefficients
                     .as_deref()
                     .expect("the plan makes coefficients for cubic passes");
-                let cubic = Cubic {
+                let cubic = Cubic::new(
                     coefficients,
-                    n: res.sizes,
-                    method: self.gradient,
-                    world_from_index: res.index_from_world.transpose(),
-                    voxels: self.dyn_field(res, Interpolation::Trilinear),
-                };
+                    res.sizes,
+                    self.gradient,
+                    res.index_from_world.transpose(),
+                    self.dyn_field(res, Interpolation::Trilinear),
+                );
                 self.with_field(cubic, res)
             }
             (Interpolation::Trilinear, ScalarType::Uint8 | ScalarType::Int8) => {

@@ -40,16 +40,47 @@ pub struct BSpline<'a, T: Voxel> {
 /// is one type for all of them; grid gradients and cell corners, read once per hit
 /// at most, come from the voxels through `voxels`.
 pub struct Cubic<'a> {
-    /// Prefiltered coefficients of the normalised voxels ([`super::prefilter_cubic`]).
-    pub coefficients: &'a [f32],
+    /// Prefiltered coefficients of the normalised voxels ([`super::prefilter_cubic`]),
+    /// one per voxel (checked in [`Cubic::new`]: the values read them unchecked).
+    coefficients: &'a [f32],
     /// Voxels per axis.
-    pub n: [usize; 3],
+    n: [usize; 3],
     /// How gradients are estimated (`Analytic`: the spline's own derivative).
-    pub method: GradientMethod,
+    method: GradientMethod,
     /// World gradient = this matrix times the index-space gradient.
-    pub world_from_index: DMat3,
+    world_from_index: DMat3,
     /// The voxels, for grid gradients and cell corners.
-    pub voxels: Box<dyn Field + 'a>,
+    voxels: Box<dyn Field + 'a>,
+}
+
+impl<'a> Cubic<'a> {
+    /// The spline over `coefficients` (prefiltered, one per voxel of a grid of `n`
+    /// voxels), with gradients by `method` taken to world space by
+    /// `world_from_index`, and grid gradients and cell corners from `voxels`.
+    ///
+    /// # Panics
+    /// If `coefficients` is empty or does not hold one value per voxel.
+    pub fn new(
+        coefficients: &'a [f32],
+        n: [usize; 3],
+        method: GradientMethod,
+        world_from_index: DMat3,
+        voxels: Box<dyn Field + 'a>,
+    ) -> Cubic<'a> {
+        let count = n[0].checked_mul(n[1]).and_then(|m| m.checked_mul(n[2]));
+        assert!(
+            !coefficients.is_empty() && count == Some(coefficients.len()),
+            "{} cubic coefficients for a grid of {n:?} voxels",
+            coefficients.len()
+        );
+        Cubic {
+            coefficients,
+            n,
+            method,
+            world_from_index,
+            voxels,
+        }
+    }
 }
 
 impl<T: Voxel> Field for Nearest<'_, T> {
@@ -137,24 +168,29 @@ impl Field for Cubic<'_> {
 
     #[inline]
     fn value(&self, p: DVec3) -> f32 {
-        let (c, sx, sxy) = (self.coefficients, self.n[0], self.n[0] * self.n[1]);
-        let voxels = self.n[0]
-            .checked_mul(self.n[1])
-            .and_then(|m| m.checked_mul(self.n[2]));
-        if c.is_empty() || voxels != Some(c.len()) {
-            // no coefficients, or those of another grid: bounds-checked reads
-            return bspline(self.n, p, |i, j, k| c[i + sx * j + sxy * k]);
-        }
-        let (ix, wx) = bspline_weights(p.x, self.n[0]);
+        let (c, n) = (self.coefficients, self.n);
+        let (sx, sxy) = (n[0], n[0] * n[1]);
+        let (ix, wx) = bspline_weights(p.x, n[0]);
         if ix[1] == ix[0] + 1 && ix[2] == ix[0] + 2 && ix[3] == ix[0] + 3 {
             // the four x indices consecutive (inside the grid): each row's four
-            // coefficients read at once (the same operations, so the same bits)
-            return bspline_rows(c, self.n, p, ix[0], wx);
+            // coefficients read as one slice, their products formed two at a time
+            // and summed in the same order from zero (the bits of the reads one by
+            // one)
+            return bspline_rows(n, p, |j, k| {
+                let at = ix[0] + sx * j + sxy * k;
+                let v: &[f32; 4] = c[at..at + 4].try_into().expect("four coefficients");
+                let mut row = 0.0f64;
+                for q in products(v, &wx) {
+                    row += q;
+                }
+                row
+            });
         }
-        // SAFETY: every axis has at least one voxel (`c` holds their product, not
-        // zero), and `bspline` asks only for indices from `mirror`, which are then
-        // below their axis' size: `i + sx j + sxy k <= sxy n[2] - 1 < c.len()`
-        bspline(self.n, p, |i, j, k| unsafe {
+        // SAFETY: `Cubic::new` checked that `c` holds one value per voxel of a
+        // grid with at least one voxel per axis, and `bspline` asks only for
+        // indices from `mirror`, which are below their axis' size there: `i + sx j
+        // + sxy k <= sxy n[2] - 1 < c.len()`
+        bspline(n, p, |i, j, k| unsafe {
             *c.get_unchecked(i + sx * j + sxy * k)
         })
     }
@@ -266,13 +302,13 @@ impl<'a, T: Voxel> Sampler<'a, T> {
             Interpolation::Nearest => f(&Nearest { grid, gradients }),
             Interpolation::Trilinear => f(&Trilinear { grid, gradients }),
             Interpolation::BSpline => f(&BSpline { grid, gradients }),
-            Interpolation::Cubic => f(&Cubic {
-                coefficients: self.coefficients.expect("checked in Sampler::new"),
-                n: self.n,
-                method: self.method,
-                world_from_index: gradients.world_from_index,
-                voxels: Box::new(Trilinear { grid, gradients }),
-            }),
+            Interpolation::Cubic => f(&Cubic::new(
+                self.coefficients.expect("checked in Sampler::new"),
+                self.n,
+                self.method,
+                gradients.world_from_index,
+                Box::new(Trilinear { grid, gradients }),
+            )),
         }
     }
 }
@@ -300,44 +336,27 @@ impl<T: Voxel> Field for Sampler<'_, T> {
 #[inline(always)]
 fn bspline(n: [usize; 3], p: DVec3, get: impl Fn(usize, usize, usize) -> f32) -> f32 {
     let (ix, wx) = bspline_weights(p.x, n[0]);
-    let (iy, wy) = bspline_weights(p.y, n[1]);
-    let (iz, wz) = bspline_weights(p.z, n[2]);
-    let mut sum = 0.0f64;
-    for c in 0..4 {
-        let mut sy = 0.0f64;
-        for b in 0..4 {
-            let mut sx = 0.0f64;
-            for a in 0..4 {
-                sx += wx[a] * get(ix[a], iy[b], iz[c]) as f64;
-            }
-            sy += wy[b] * sx;
+    bspline_rows(n, p, |j, k| {
+        let mut row = 0.0f64;
+        for a in 0..4 {
+            row += wx[a] * get(ix[a], j, k) as f64;
         }
-        sum += wz[c] * sy;
-    }
-    (sum as f32).clamp(0.0, 1.0)
+        row
+    })
 }
 
-/// [`bspline`] over the coefficients `c` of a grid of `n` voxels, where the x
-/// indices are `x0..x0 + 4` (inside the grid) with weights `wx`: each row's four
-/// coefficients are one slice, their products summed in the same order from zero,
-/// so the result has the bits of [`bspline`]'s.
+/// The B-spline at `p` from `row(j, k)`, the x-weighted sum of the row of voxels
+/// `(j, k)`: the rows weighted along y and then z, summed in order from zero, and
+/// clamped to [0, 1].
 #[inline(always)]
-fn bspline_rows(c: &[f32], n: [usize; 3], p: DVec3, x0: usize, wx: [f64; 4]) -> f32 {
+fn bspline_rows(n: [usize; 3], p: DVec3, row: impl Fn(usize, usize) -> f64) -> f32 {
     let (iy, wy) = bspline_weights(p.y, n[1]);
     let (iz, wz) = bspline_weights(p.z, n[2]);
-    let sxy = n[0] * n[1];
     let mut sum = 0.0f64;
     for (k, wk) in iz.into_iter().zip(wz) {
         let mut sy = 0.0f64;
         for (j, wj) in iy.into_iter().zip(wy) {
-            let at = x0 + n[0] * j + sxy * k;
-            let v: &[f32; 4] = c[at..at + 4].try_into().expect("four coefficients");
-            let q = products(v, &wx);
-            let mut sx = 0.0f64;
-            for qa in q {
-                sx += qa;
-            }
-            sy += wj * sx;
+            sy += wj * row(j, k);
         }
         sum += wk * sy;
     }
@@ -478,13 +497,13 @@ mod tests {
                     r => (r as f32 - 3.5) * 0.37 + (i % 5) as f32 * 0.013,
                 })
                 .collect();
-            let cubic = Cubic {
-                coefficients: &c,
+            let cubic = Cubic::new(
+                &c,
                 n,
-                method: GradientMethod::Central,
-                world_from_index: DMat3::IDENTITY,
-                voxels: Box::new(Line),
-            };
+                GradientMethod::Central,
+                DMat3::IDENTITY,
+                Box::new(Line),
+            );
             let (sx, sxy) = (n[0], n[0] * n[1]);
             let mut rows = 0;
             for x in [-2.0, 0.0, 0.4, 1.0, 1.5, 2.99, 3.0, 3.7, 5.2, 6.0, 9.0] {
