@@ -28,7 +28,9 @@ use crate::render::march::{March, Midpoints};
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;
 use crate::shade::Shader;
-use crate::transfer::{correct_opacity, table_position, Preintegrated, Table1D, Table2D};
+use crate::transfer::{
+    clamp_unit, correct_opacity, table_position, Preintegrated, Table1D, Table2D,
+};
 
 /// A transfer-function table.
 #[derive(Clone, Debug)]
@@ -100,8 +102,13 @@ trait Lookup {
     /// RGBA of value `v` at `p()` (index space; asked for the gradient magnitude of
     /// 2D tables only, expressed per voxel with `voxel_length`), with the gradient
     /// when one was computed; `x` is `v`'s position along the value axis
-    /// ([`Composite::position`]).
-    fn rgba<F: Field>(
+    /// ([`Composite::position_of_unit`]).
+    ///
+    /// # Safety
+    /// `x` is in `[0, n - 1]` for a table of `n` entries along the value axis (as
+    /// every position `Composite::position_of_unit` gives is, for the pass's
+    /// tables): a 1D table reads at `x` unchecked.
+    unsafe fn rgba<F: Field>(
         &self,
         field: &F,
         p: impl FnOnce() -> DVec3,
@@ -113,7 +120,7 @@ trait Lookup {
 
 impl Lookup for Table1D {
     #[inline(always)]
-    fn rgba<F: Field>(
+    unsafe fn rgba<F: Field>(
         &self,
         _field: &F,
         _p: impl FnOnce() -> DVec3,
@@ -121,13 +128,14 @@ impl Lookup for Table1D {
         x: f32,
         _voxel_length: f64,
     ) -> ([f32; 4], Option<DVec3>) {
-        (self.lookup_at(x), None)
+        // SAFETY (the caller's): x is in [0, len - 1]
+        (unsafe { self.lookup_within(x) }, None)
     }
 }
 
 impl Lookup for Table2D {
     #[inline(always)]
-    fn rgba<F: Field>(
+    unsafe fn rgba<F: Field>(
         &self,
         field: &F,
         p: impl FnOnce() -> DVec3,
@@ -162,9 +170,10 @@ pub struct Composite {
     /// Entries along the value axis, less one: the tables look a value `v` up at
     /// `table_position(v, value_last)`.
     value_last: f32,
-    /// The last table position up to which every lookup is transparent (-1 when
-    /// the first entry is not): see [`Composite::clear`].
-    clear_up_to: f32,
+    /// The largest value in [0, 1] whose table position is at most the last one up
+    /// to which every lookup is transparent (-1 when there is none, the first entry
+    /// not being transparent): see [`Composite::clear`].
+    clear_unit_up_to: f32,
 }
 
 impl Composite {
@@ -186,10 +195,15 @@ impl Composite {
         // entry z - 1 with weight 1 (and entry z with weight 0)
         let tables = Tables::new(table, dt / reference_step);
         let opaque = tables.opaque_entries();
+        if let Tables::OneD(t) = &tables {
+            // the lookups' safety: both tables are as long as the value axis
+            debug_assert!(t.given.len() == opaque.len() && t.full_step.len() == opaque.len());
+        }
         let z = opaque.iter().position(|&o| o).unwrap_or(opaque.len());
+        let value_last = (opaque.len() - 1) as f32;
         Composite {
-            value_last: (opaque.len() - 1) as f32,
-            clear_up_to: z as f32 - 1.0,
+            value_last,
+            clear_unit_up_to: last_clear_unit(value_last, z as f32 - 1.0),
             tables,
             shader,
             reference_step,
@@ -283,21 +297,50 @@ impl Composite {
     /// a 2D table).
     #[cfg(test)]
     fn clear(&self, v: f32) -> bool {
-        self.clear_at(self.position(v))
+        self.clear_unit(clamp_unit(v))
     }
 
-    /// [`Composite::clear`] from the value's table position.
+    /// [`Composite::clear`] from the value clamped to [0, 1] (`clamp_unit`): the
+    /// same answer as comparing its table position `y * value_last` with the last
+    /// transparent one, since that product does not decrease as `y` grows (rounded
+    /// too), without the multiplication, which only the samples that are not clear
+    /// then need.
     #[inline(always)]
-    fn clear_at(&self, x: f32) -> bool {
-        x <= self.clear_up_to
+    fn clear_unit(&self, y: f32) -> bool {
+        y <= self.clear_unit_up_to
     }
 
     /// The position of value `v` along the tables' value axis, as their lookups
-    /// compute it.
+    /// compute it, from `y = clamp_unit(v)` (`table_position(v, value_last)`).
     #[inline(always)]
-    fn position(&self, v: f32) -> f32 {
-        table_position(v, self.value_last)
+    fn position_of_unit(&self, y: f32) -> f32 {
+        y * self.value_last
     }
+}
+
+/// The largest `y` in [0, 1] with `y * last <= up_to` in f32 (the table position of
+/// a value clamped to [0, 1]), found by bisection over the bit patterns, on which the
+/// product does not decrease: -1 when even 0 is above `up_to`, 1 when every value is
+/// at or below it.
+fn last_clear_unit(last: f32, up_to: f32) -> f32 {
+    let clear = |y: f32| y * last <= up_to;
+    if !clear(0.0) {
+        return -1.0;
+    }
+    if clear(1.0) {
+        return 1.0;
+    }
+    // clear(lo) and !clear(hi)
+    let (mut lo, mut hi) = (0u32, 1.0f32.to_bits());
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if clear(f32::from_bits(mid)) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    f32::from_bits(lo)
 }
 
 impl Integrand for Composite {
@@ -410,28 +453,35 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     #[inline(always)]
     fn take(&mut self, i: usize, t: f64, v: f32) -> ControlFlow<()> {
         let p = self.pass;
-        let x = p.position(v);
-        if p.clear_at(x) {
+        let y = clamp_unit(v);
+        if p.clear_unit(y) {
             return ControlFlow::Continue(());
         }
+        let x = p.position_of_unit(y);
         let full = self.march.is_full_step(i + 1);
         let pos = || self.ray.index.at(t);
+        // SAFETY (both lookups): y is in [0, 1], so x = y * value_last is in [0,
+        // value_last] (the product rounds monotonically, and 1 * value_last is
+        // exact), and both tables have value_last + 1 entries along the value axis
+        // (`Composite::new`)
         let (rgba, grad, a) = if full {
             // opacity already corrected for a whole step
-            let (rgba, grad) = self
-                .tables
-                .full_step
-                .rgba(self.field, pos, v, x, p.voxel_length);
+            let (rgba, grad) = unsafe {
+                self.tables
+                    .full_step
+                    .rgba(self.field, pos, v, x, p.voxel_length)
+            };
             (rgba, grad, rgba[3])
         } else {
             let length = self.march.t(i + 1) - self.march.t(i);
             if length <= 0.0 {
                 return ControlFlow::Continue(());
             }
-            let (rgba, grad) = self
-                .tables
-                .given
-                .rgba(self.field, pos, v, x, p.voxel_length);
+            let (rgba, grad) = unsafe {
+                self.tables
+                    .given
+                    .rgba(self.field, pos, v, x, p.voxel_length)
+            };
             let a = correct_opacity(rgba[3], (length / p.reference_step) as f32);
             (rgba, grad, a)
         };
@@ -661,6 +711,18 @@ mod tests {
 
     /// `clear(v)` is true only where both tables' lookups are transparent.
     fn check(pass: &Composite, entries: usize, lookup: impl Fn(&Tables, bool, f32) -> f32) {
+        // the test on the clamped value gives the answer of the table position's
+        // test against the last position of transparent entries, at the values
+        // around every table position and a few ulps around its threshold
+        let opaque = pass.tables.opaque_entries();
+        let z = opaque.iter().position(|&o| o).unwrap_or(opaque.len());
+        let last = (entries - 1) as f32;
+        let edge = pass.clear_unit_up_to.max(0.0).to_bits();
+        let near = (edge.saturating_sub(4)..=edge + 4).map(f32::from_bits);
+        for v in values(entries).into_iter().chain(near) {
+            let by_position = table_position(v, last) <= z as f32 - 1.0;
+            assert_eq!(pass.clear(v), by_position, "v = {v:e}, {entries} entries");
+        }
         let mut clear = 0;
         for v in values(entries) {
             if pass.clear(v) {
@@ -673,7 +735,6 @@ mod tests {
         }
         // and the test is not vacuous: a table whose first two entries are
         // transparent has clear values
-        let opaque = pass.tables.opaque_entries();
         if opaque.iter().take(2).all(|&o| !o) {
             assert!(clear > 0);
         }
