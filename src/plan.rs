@@ -21,13 +21,13 @@ use std::fmt::Write as _;
 use std::ops::Range;
 
 use crate::error::Error;
-use crate::output::Eye;
 use crate::render::footprint::Footprint;
 use crate::render::pass::GridSource;
 use crate::render::{ImageKind, IndexFrame, RenderPass};
 use crate::sample::PAIR_TABLE_BYTES;
 use crate::scene::{Format, Layout, LightKindSpec, MipOutput, Mode, OrbitPath, Scene, Units};
 use crate::shade::{Light, LightKind};
+use crate::views::Eye;
 use crate::volume::{human_bytes, VolumeHeader};
 
 /// Options of a run that are not part of the scene.

@@ -23,9 +23,19 @@ use std::fmt::Write as _;
 
 use glam::DVec3;
 
-use crate::output::Eye;
 use crate::render::View;
 use crate::scene::{Camera, OrbitPath, Scene, Separation, StereoMethod};
+
+/// Which eye an image belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Eye {
+    /// No stereo.
+    Mono,
+    /// Left eye (turned -angle/2).
+    Left,
+    /// Right eye (turned +angle/2).
+    Right,
+}
 
 /// One distinct view: an orbit position and an eye placed there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

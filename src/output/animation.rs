@@ -18,10 +18,11 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
+use super::frame_path;
 use super::write::write_atomic_with;
-use super::{frame_path, Eye};
 use crate::error::Error;
 use crate::scene::{Animation, AnimationFormat, Layout, Scene};
+use crate::views::Eye;
 
 /// One image sequence of a run: a pass and, for the `pair` layout, an eye.
 #[derive(Clone, Debug, PartialEq)]

@@ -13,6 +13,8 @@ pub mod stereo;
 pub mod viewer;
 pub mod write;
 
+/// Which eye an image belongs to (defined with the views that make the eyes).
+pub use crate::views::Eye;
 pub use display::{DisplayKind, Window};
 pub use write::write_atomic;
 
@@ -54,17 +56,6 @@ pub fn try_film(width: usize, height: usize, channels: usize) -> Result<Film, Al
         channels,
         data: try_zeroed(n)?,
     })
-}
-
-/// Which eye an image belongs to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Eye {
-    /// No stereo.
-    Mono,
-    /// Left eye (turned -angle/2).
-    Left,
-    /// Right eye (turned +angle/2).
-    Right,
 }
 
 /// `{out}/{pass}_{frame:04}{_left|_right}.{ext}` (SCENES.md "Outputs").

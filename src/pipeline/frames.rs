@@ -10,11 +10,11 @@ use rayon::prelude::*;
 use super::{CacheKey, Emit, EyeView, FrameViews, Rendered, Summary};
 use crate::error::Error;
 use crate::output::display::Window;
-use crate::output::Eye;
 use crate::plan::Plan;
 use crate::render::{Film, ImageKind, RenderView, Resources};
 use crate::sample::Normalize;
 use crate::scene::{Format, Scene};
+use crate::views::Eye;
 use crate::views::{frames_per_batch, ViewKey};
 use crate::volume::Volume;
 

@@ -35,10 +35,10 @@ use crate::error::Error;
 use crate::output::animation;
 use crate::output::display::Window;
 use crate::output::manifest::{self, FrameRecord, ManifestStatus, ViewRecord};
-use crate::output::Eye;
 use crate::plan::{Plan, RunOptions};
 use crate::render::{Film, View};
 use crate::scene::Scene;
+use crate::views::Eye;
 use crate::views::ViewKey;
 use crate::volume::{confine, Limits, Volume};
 

@@ -7,10 +7,11 @@ use crate::error::Error;
 use crate::output::display::{to_display, DisplayKind};
 use crate::output::manifest::{self, FileRecord};
 use crate::output::overlay::{self, Colorbar, FrameInfo, Overlay, ScaleBar};
-use crate::output::{encode, frame_path, stereo, Eye};
+use crate::output::{encode, frame_path, stereo};
 use crate::plan::Plan;
 use crate::render::{Film, ImageKind, View};
 use crate::scene::{AnaglyphColors, Format, Layout, MipOutput, Mode, Projection, Scene};
+use crate::views::Eye;
 
 /// Lays out, encodes and writes the images of one (pass, frame); returns each file
 /// with its manifest entry.
