@@ -603,11 +603,9 @@ impl<'a> Gradients<'a> {
         }
     }
 
-    /// Index-space gradient at voxel (i, j, k) by the estimator.
-    fn at_voxel<T: Voxel>(&self, grid: &Grid<T>, i: usize, j: usize, k: usize) -> [f32; 3] {
-        if let Some(g) = self.volume {
-            return g[i + grid.sx * j + grid.sxy * k];
-        }
+    /// Index-space gradient at voxel (i, j, k) by the estimator, from the grid (the
+    /// gradient volume, where there is one, holds these).
+    fn estimate<T: Voxel>(&self, grid: &Grid<T>, i: usize, j: usize, k: usize) -> [f32; 3] {
         filter::grid_gradient(self.method, grid.n, [i, j, k], |a, b, c| {
             grid.voxel_clamped(a, b, c)
         })
@@ -627,7 +625,7 @@ impl<'a> Gradients<'a> {
         // corners reads 54 voxels, all within the 4^3 voxels around the cell: those
         // are read once, and each corner's estimate reads them from there (the same
         // values, so the same bits)
-        if self.volume.is_none() && self.method == GradientMethod::Sobel {
+        if self.method == GradientMethod::Sobel {
             let x = p.to_array();
             let first = [0, 1, 2].map(|a| cell(x[a], grid.n[a]).0);
             let block = Neighbourhood::read(grid, first);
@@ -635,7 +633,7 @@ impl<'a> Gradients<'a> {
                 filter::grid_gradient(self.method, grid.n, [i, j, k], |a, b, c| block.at(a, b, c))
             });
         }
-        self.interpolate(grid.n, p, |i, j, k| self.at_voxel(grid, i, j, k))
+        self.interpolate(grid.n, p, |i, j, k| self.estimate(grid, i, j, k))
     }
 
     /// The index-space gradients `corner` gives at the corners of the cell of `p`
@@ -729,13 +727,18 @@ mod tests {
 
     /// Checks that `g.interpolated` at points inside, on the faces, edges and
     /// corners of, and beyond a grid of `n` voxels gives the bits of each corner's
-    /// gradient read by `Gradients::at_voxel` and interpolated; how many of those
-    /// gradients were not zero.
-    fn check_corner_reads(g: &Gradients, values: &[f32], n: [usize; 3]) -> usize {
+    /// gradient (`corner(grid, i, j, k)`) interpolated; how many of those gradients
+    /// were not zero.
+    fn check_corner_reads(
+        g: &Gradients,
+        values: &[f32],
+        n: [usize; 3],
+        corner: impl Fn(&Grid<f32>, usize, usize, usize) -> [f32; 3],
+    ) -> usize {
         let norm = Normalize::new(0.0, 1.0);
         let lut = normalisation_table::<f32>(norm);
         let grid = Grid::new(Voxels::from_slice(values), n, norm, &lut);
-        let reference = |p: DVec3| g.interpolate(n, p, |i, j, k| g.at_voxel(&grid, i, j, k));
+        let reference = |p: DVec3| g.interpolate(n, p, |i, j, k| corner(&grid, i, j, k));
         let mut checked = 0;
         for x in [-1.0, 0.0, 0.3, 1.0, 2.5, 4.99, 5.0, 7.0] {
             for y in [-0.5, 0.0, 1.7, 3.2, 4.0, 6.0] {
@@ -766,7 +769,9 @@ mod tests {
                 .collect();
             let m = DMat3::from_diagonal(DVec3::new(1.0, 0.8, 1.3));
             let g = Gradients::new(GradientMethod::Sobel, None, m);
-            let checked = check_corner_reads(&g, &values, n);
+            // each corner's estimate read from the grid
+            let checked =
+                check_corner_reads(&g, &values, n, |grid, i, j, k| g.estimate(grid, i, j, k));
             assert!(checked > 0, "{n:?}: every gradient zero");
         }
     }
@@ -789,7 +794,8 @@ mod tests {
                 .collect();
             let m = DMat3::from_diagonal(DVec3::new(1.0, 0.8, 1.3));
             let g = Gradients::new(GradientMethod::Central, Some(&volume), m);
-            let checked = check_corner_reads(&g, &vec![0.0; len], n);
+            let at = |_: &Grid<f32>, i, j, k| volume[i + n[0] * (j + n[1] * k)];
+            let checked = check_corner_reads(&g, &vec![0.0; len], n, at);
             assert!(checked > 0, "{n:?}: every gradient zero");
         }
     }
