@@ -336,9 +336,10 @@ impl Plan {
         let threads = self.threads as u64;
         let eyes = self.eyes.len();
         let channels_max = self.passes.iter().map(|p| p.channels()).max().unwrap_or(1);
-        // Views kept for one batch of frames (plus those a reused toe-in eye keeps
-        // for later frames), and display copies for the images being encoded.
-        let kept_views = (crate::views::frames_per_batch(self.threads)
+        // Views kept for two batches of frames, one being written while the next
+        // renders (plus those a reused toe-in eye keeps for later frames), and
+        // display copies for the images being encoded.
+        let kept_views = (2 * crate::views::frames_per_batch(self.threads)
             + self
                 .views
                 .reuse_steps()

@@ -280,9 +280,9 @@ impl Views {
 }
 
 /// Frames rendered together: their views are rendered in parallel, then their
-/// images written, before the next batch starts (views a later frame reuses are
+/// images written while the next batch renders (views a later frame reuses are
 /// kept). Enough to keep every thread busy; bounded, so memory does not grow with
-/// the length of the orbit.
+/// the length of the orbit (at most two batches' views are held).
 pub fn frames_per_batch(threads: usize) -> usize {
     (2 * threads).max(4)
 }

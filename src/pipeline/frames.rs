@@ -1,5 +1,6 @@
 //! The parallel rendering of the remaining frames, batch by batch: distinct views
-//! rendered once (stereo reuse), handed to the sink with their grey windows.
+//! rendered once (stereo reuse), handed to the sink with their grey windows. A
+//! batch is written while the next one renders.
 
 use std::collections::{BTreeSet, HashMap, HashSet};
 use std::path::PathBuf;
@@ -17,6 +18,12 @@ use crate::scene::{Format, Scene};
 use crate::views::Eye;
 use crate::views::{frames_per_batch, ViewKey};
 use crate::volume::Volume;
+
+/// The prepared passes (or keyframed variants) by variant.
+type Runtimes<'a> = HashMap<usize, Box<dyn RenderView + 'a>>;
+
+/// The files written for each (pass, frame).
+type Written = Vec<((usize, usize), Vec<PathBuf>)>;
 
 pub(super) fn render_passes(
     scene: &Scene,
@@ -79,7 +86,7 @@ pub(super) fn render_passes(
     // prepared when a batch first needs it and dropped after the last batch that
     // does: a keyframed sequence holds a few variants' tables at a time, not one
     // per frame.
-    let mut runtimes: HashMap<usize, Box<dyn RenderView + '_>> = HashMap::new();
+    let mut runtimes: Runtimes = HashMap::new();
     let views = &plan.views;
     let view_of = |key: ViewKey, w: usize, h: usize| views.view(&scene.camera, key, w, h, sphere);
 
@@ -163,13 +170,14 @@ pub(super) fn render_passes(
         }
     }
     let mut cache: HashMap<CacheKey, Rendered> = HashMap::new();
-    let mut results: Vec<((usize, usize), Vec<PathBuf>)> = Vec::with_capacity(jobs.len());
+    let mut results: Written = Vec::with_capacity(jobs.len());
     let (mut rendered_views, mut samples, mut nominal) = (0usize, 0u64, 0u64);
-    progress.start(jobs.len() as u64);
-    for (b, batch) in batches.iter().enumerate() {
+    // The views batch `b` needs that no batch before it rendered, each with the
+    // (pass, frame) it is first rendered for.
+    let todo_of = |b: usize, cache: &HashMap<CacheKey, Rendered>| {
         let mut todo: Vec<(CacheKey, (usize, usize))> = Vec::new();
         let mut seen = HashSet::new();
-        for &(p, k) in batch {
+        for &(p, k) in &batches[b] {
             for &e in views.eyes() {
                 let ck = cache_key(p, k, e);
                 if !cache.contains_key(&ck) && seen.insert(ck) {
@@ -177,13 +185,10 @@ pub(super) fn render_passes(
                 }
             }
         }
-        for &(ck, _) in &todo {
-            runtimes
-                .entry(ck.0)
-                .or_insert_with(|| plan.variants[ck.0].prepare(&resources));
-        }
-        let fresh: Vec<(CacheKey, Rendered)> = todo
-            .par_iter()
+        todo
+    };
+    let render = |todo: &[(CacheKey, (usize, usize))], runtimes: &Runtimes<'_>| {
+        todo.par_iter()
             .map(|&(ck, first)| {
                 let rt = &runtimes[&ck.0];
                 let view = view_of(ck.1, plan.width, plan.height);
@@ -199,12 +204,11 @@ pub(super) fn render_passes(
                 };
                 (ck, r)
             })
-            .collect();
-        rendered_views += fresh.len();
-        samples += fresh.iter().map(|(_, r)| r.samples).sum::<u64>();
-        nominal += fresh.iter().map(|(_, r)| r.nominal).sum::<u64>();
-        cache.extend(fresh);
-        let written: Vec<((usize, usize), Vec<PathBuf>)> = batch
+            .collect::<Vec<(CacheKey, Rendered)>>()
+    };
+    // Hands the frames of batch `b` to the sink, from the cached views.
+    let write = |b: usize, cache: &HashMap<CacheKey, Rendered>| -> Result<Written, Error> {
+        batches[b]
             .par_iter()
             .map(|&(p, k)| {
                 let cks: Vec<CacheKey> = views.eyes().iter().map(|&e| cache_key(p, k, e)).collect();
@@ -241,10 +245,39 @@ pub(super) fn render_passes(
                 progress.advance(1);
                 Ok(((p, k), files))
             })
-            .collect::<Result<_, Error>>()?;
-        results.extend(written);
-        cache.retain(|ck, _| last_use.get(ck).is_some_and(|&last| last > b));
-        runtimes.retain(|v, _| variant_last_use.get(v).is_some_and(|&last| last > b));
+            .collect()
+    };
+    progress.start(jobs.len() as u64);
+    // Batch `b` renders while batch `b - 1` is written: the writes (encoding,
+    // hashing, the file system's locks) and the renders' last bands no longer
+    // leave a thread idle while the other finishes.
+    for b in 0..=batches.len() {
+        let todo = if b < batches.len() {
+            todo_of(b, &cache)
+        } else {
+            Vec::new()
+        };
+        for &(ck, _) in &todo {
+            runtimes
+                .entry(ck.0)
+                .or_insert_with(|| plan.variants[ck.0].prepare(&resources));
+        }
+        let (fresh, written) = rayon::join(
+            || render(&todo, &runtimes),
+            || match b.checked_sub(1) {
+                Some(w) => write(w, &cache),
+                None => Ok(Vec::new()),
+            },
+        );
+        results.extend(written?);
+        if let Some(w) = b.checked_sub(1) {
+            cache.retain(|ck, _| last_use.get(ck).is_some_and(|&last| last > w));
+            runtimes.retain(|v, _| variant_last_use.get(v).is_some_and(|&last| last > w));
+        }
+        rendered_views += fresh.len();
+        samples += fresh.iter().map(|(_, r)| r.samples).sum::<u64>();
+        nominal += fresh.iter().map(|(_, r)| r.nominal).sum::<u64>();
+        cache.extend(fresh);
     }
     progress.finish();
     results.sort_by_key(|r| r.0);

@@ -2,7 +2,8 @@
 //! the (pass, frame) images that remain (`--resume`), load the voxels, precompute
 //! what the passes need, fix the grey windows, then batch by batch of frames render
 //! the distinct views in parallel and lay out, encode and write each image
-//! atomically with its manifest record; at the end, merge the manifest and, once
+//! atomically with its manifest record (a batch is written while the next one
+//! renders); at the end, merge the manifest and, once
 //! every frame of the orbit exists, assemble the animations.
 //!
 //! Nothing is created on disk until the scene, the volume and the plan have all
