@@ -360,10 +360,11 @@ impl Plan {
         };
         let combined = scene.stereo.is_some_and(|s| s.layout != Layout::Pair);
         // per thread writing a frame: the quantised samples and the encoded file (or
-        // the NRRD's float samples and its text), and a combined stereo picture
+        // the NRRD's float samples and its text) and the file's aligned copy for a
+        // direct write (`output::write`), and a combined stereo picture
         let per_file = match scene.image.format {
-            Format::Nrrd => file_pixels.saturating_mul(8 * channels_max as u64),
-            _ => file_pixels.saturating_mul(16),
+            Format::Nrrd => file_pixels.saturating_mul(12 * channels_max as u64),
+            _ => file_pixels.saturating_mul(24),
         };
         self.output_bytes = threads.saturating_mul(per_file.saturating_add(if combined {
             file_pixels.saturating_mul(16)

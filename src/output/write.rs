@@ -31,13 +31,101 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
 use std::time::{Duration, SystemTime};
 
-/// The largest piece handed to the file in one `write(2)`. On the Linux 6.18
-/// kernels of this project's machines, writes of 256 KiB or more (in some runs
-/// 128 KiB) into a new file took 20-38 ms of system time per 4 MiB (the page
-/// cache's large folios for them are slow to allocate there), and pieces of 64 KiB
-/// took 0.9-1.1 ms: `bench/write_pieces.py` measures it. A 512 x 512 RGBA float32
-/// frame is 4 MiB.
+/// The largest piece handed to the file in one `write(2)` by a writer callback
+/// ([`Folder::write_atomic_with`]). On this project's virtual machines, writes of
+/// 256 KiB and more into a new file took 20-35 ms of system time per 4 MiB in
+/// almost every round of `bench/write_pieces.py`, pieces of 64 KiB 1-3 ms in some
+/// spells and as long in others (see [`DIRECT_FROM`]).
 const WRITE_PIECE: usize = 64 << 10;
+
+/// Files written whole from memory ([`Folder::write_atomic`], [`write_atomic_stat`])
+/// of at least this many bytes go around the page cache (`O_DIRECT`, on Linux,
+/// where the file system takes it): the bytes are copied into an aligned buffer
+/// the thread keeps, written in one call, and the file cut to its length. Every
+/// file is synced before its rename anyway, so the call waits for the device as
+/// the sync did. On the virtual machines of this project (Linux 6.18 guests that
+/// hand free memory back to their host) the page cache's fresh pages for a new
+/// 4 MiB file cost 20-35 ms of system time in spells, 1-3 ms between them, while
+/// the direct write takes 0.2 ms (`bench/write_pieces.py`); and a long run's
+/// frames no longer push a mapped volume's pages out of the cache.
+const DIRECT_FROM: usize = 256 << 10;
+
+/// The alignment of a direct write's buffer address, file offset and length: 4 KiB,
+/// the largest logical block of common devices.
+const DIRECT_ALIGN: usize = 4096;
+
+/// Writes `file` from the start through a buffer, in pieces of at most
+/// [`WRITE_PIECE`] bytes.
+fn buffered(file: File, fill: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> io::Result<File> {
+    let mut w = BufWriter::with_capacity(WRITE_PIECE, Pieces(file));
+    fill(&mut w)?;
+    let Pieces(file) = w.into_inner().map_err(|e| e.into_error())?;
+    Ok(file)
+}
+
+/// Direct writes (`O_DIRECT`): see [`DIRECT_FROM`].
+#[cfg(target_os = "linux")]
+mod direct {
+    use std::cell::RefCell;
+    use std::fs::File;
+    use std::io;
+    use std::os::unix::fs::FileExt;
+
+    use rustix::fs::{fcntl_getfl, fcntl_setfl, OFlags};
+
+    use super::DIRECT_ALIGN;
+
+    /// One aligned block of a direct write's buffer.
+    #[derive(Clone, Copy)]
+    #[repr(C, align(4096))]
+    struct Block([u8; DIRECT_ALIGN]);
+
+    thread_local! {
+        /// The thread's aligned buffer, kept from file to file, so that writing a
+        /// frame does not touch fresh memory either.
+        static BUFFER: RefCell<Vec<Block>> = const { RefCell::new(Vec::new()) };
+    }
+
+    /// Writes `bytes` into the new, empty `file` around the page cache: `Ok(true)`
+    /// once written, `Ok(false)` if the file system does not take direct writes
+    /// (the file is then empty again, its cursor at the start, to be written
+    /// otherwise).
+    pub(super) fn write(file: &File, bytes: &[u8]) -> io::Result<bool> {
+        let flags = fcntl_getfl(file)?;
+        if fcntl_setfl(file, flags | OFlags::DIRECT).is_err() {
+            return Ok(false);
+        }
+        let written = BUFFER.with_borrow_mut(|blocks| {
+            let n = bytes.len().div_ceil(DIRECT_ALIGN);
+            if blocks.len() < n {
+                blocks.resize(n, Block([0; DIRECT_ALIGN]));
+            }
+            // SAFETY: `blocks` holds `n` blocks of `DIRECT_ALIGN` plain bytes, one
+            // after the other (`repr(C)`, its size a multiple of its alignment)
+            let buf: &mut [u8] = unsafe {
+                std::slice::from_raw_parts_mut(blocks.as_mut_ptr().cast::<u8>(), n * DIRECT_ALIGN)
+            };
+            buf[..bytes.len()].copy_from_slice(bytes);
+            buf[bytes.len()..].fill(0);
+            // at offset 0, not through the cursor: a refused write leaves it at the
+            // start for the buffered one
+            file.write_all_at(buf, 0)
+        });
+        fcntl_setfl(file, flags)?;
+        match written {
+            Ok(()) => {
+                // the zeros after the bytes were only there to fill the last block
+                file.set_len(bytes.len() as u64)?;
+                Ok(true)
+            }
+            Err(e) if e.raw_os_error() == Some(libc::EINVAL) => {
+                file.set_len(0)?;
+                Ok(false)
+            }
+            Err(e) => Err(e),
+        }
+    }
+}
 
 /// A writer that hands `W` at most [`WRITE_PIECE`] bytes per write (a
 /// [`BufWriter`] hands larger slices on whole).
@@ -57,14 +145,14 @@ impl<W: Write> Write for Pieces<W> {
 /// The folder of `path` is followed as given; the file itself is never written
 /// through a link.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    write_atomic_with(path, |w| w.write_all(bytes))
+    write_atomic_stat(path, bytes).map(drop)
 }
 
 /// [`write_atomic`], returning the metadata of the file written (see
 /// [`Folder::write_atomic_stat`]).
 pub fn write_atomic_stat(path: &Path, bytes: &[u8]) -> io::Result<Option<std::fs::Metadata>> {
     let (dir, name) = split(path)?;
-    Folder::open(dir)?.write_atomic_stat(name, |w| w.write_all(bytes))
+    Folder::open(dir)?.write_atomic_bytes_stat(name, bytes)
 }
 
 /// Writes `path` atomically from a writer callback (for files too large to hold
@@ -286,9 +374,26 @@ impl Folder {
         }
     }
 
-    /// Writes `bytes` to `name` in this folder atomically.
+    /// Writes `bytes` to `name` in this folder atomically (from 256 KiB, around the
+    /// page cache where the file system allows it).
     pub fn write_atomic(&self, name: &str, bytes: &[u8]) -> io::Result<()> {
-        self.write_atomic_with(name, |w| w.write_all(bytes))
+        self.write_atomic_bytes_stat(name, bytes).map(drop)
+    }
+
+    /// [`Folder::write_atomic`], returning the metadata as
+    /// [`Folder::write_atomic_stat`] does.
+    pub fn write_atomic_bytes_stat(
+        &self,
+        name: &str,
+        bytes: &[u8],
+    ) -> io::Result<Option<std::fs::Metadata>> {
+        self.write_then_rename(name, |file| {
+            #[cfg(target_os = "linux")]
+            if bytes.len() >= DIRECT_FROM && direct::write(&file, bytes)? {
+                return Ok(file);
+            }
+            buffered(file, |w| w.write_all(bytes))
+        })
     }
 
     /// Writes `name` in this folder atomically from a writer callback: a new
@@ -310,11 +415,20 @@ impl Folder {
         name: &str,
         fill: impl FnOnce(&mut dyn Write) -> io::Result<()>,
     ) -> io::Result<Option<std::fs::Metadata>> {
+        self.write_then_rename(name, |file| buffered(file, fill))
+    }
+
+    /// A new temporary file for `name`, written by `write`, synced, then renamed
+    /// over `name` (removed instead if anything fails); the metadata as
+    /// [`Folder::write_atomic_stat`] returns it.
+    fn write_then_rename(
+        &self,
+        name: &str,
+        write: impl FnOnce(File) -> io::Result<File>,
+    ) -> io::Result<Option<std::fs::Metadata>> {
         let (tmp, file) = self.create_temporary(name)?;
         let result = (|| {
-            let mut w = BufWriter::with_capacity(WRITE_PIECE, Pieces(file));
-            fill(&mut w)?;
-            let Pieces(file) = w.into_inner().map_err(|e| e.into_error())?;
+            let file = write(file)?;
             file.sync_all()?;
             #[cfg(not(unix))]
             drop(file);
@@ -617,6 +731,81 @@ mod tests {
         fn flush(&mut self) -> io::Result<()> {
             Ok(())
         }
+    }
+
+    /// `n` bytes that do not repeat with any short period.
+    fn pattern(n: usize, seed: u8) -> Vec<u8> {
+        (0..n as u32)
+            .map(|i| i.wrapping_mul(2_654_435_761).to_le_bytes()[3] ^ seed)
+            .collect()
+    }
+
+    #[test]
+    fn whole_files_from_memory_are_exactly_their_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let folder = Folder::open(dir.path()).unwrap();
+        // buffered and direct sizes, whole blocks and not, and small files after
+        // large ones (the thread's kept buffer must not show its older bytes)
+        let sizes = [
+            (4 << 20) + 123,
+            100,
+            DIRECT_FROM - 1,
+            DIRECT_FROM,
+            DIRECT_FROM + 1,
+            DIRECT_FROM + DIRECT_ALIGN,
+        ];
+        for (k, n) in sizes.into_iter().enumerate() {
+            let bytes = pattern(n, k as u8);
+            let name = format!("f{k}");
+            let meta = folder.write_atomic_bytes_stat(&name, &bytes).unwrap();
+            assert_eq!(meta.map(|m| m.len()), Some(n as u64), "{n} bytes");
+            assert!(
+                std::fs::read(dir.path().join(&name)).unwrap() == bytes,
+                "{n} bytes"
+            );
+        }
+        // no temporary file is left
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), sizes.len());
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn direct_writes_leave_no_pages_in_the_page_cache() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("d");
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create_new(true)
+            .open(&path)
+            .unwrap();
+        let bytes = pattern(DIRECT_FROM + 5, 9);
+        let kind = rustix::fs::fstatfs(&file).unwrap().f_type;
+        // tmpfs takes direct writes, but its files are the page cache
+        const TMPFS_MAGIC: i64 = 0x0102_1994;
+        if !direct::write(&file, &bytes).unwrap() || kind as i64 == TMPFS_MAGIC {
+            eprintln!(
+                "skipped: the file system of {} keeps direct writes in memory or refuses them",
+                dir.path().display()
+            );
+            return;
+        }
+        // SAFETY: the file is this test's own, and nothing changes it while mapped
+        let map = unsafe { memmap2::Mmap::map(&file) }.unwrap();
+        // SAFETY: sysconf reads a constant of the system
+        let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) } as usize;
+        let mut resident = vec![0u8; map.len().div_ceil(page)];
+        // SAFETY: the range is the mapping's, and `resident` has a byte per page
+        let r = unsafe { libc::mincore(map.as_ptr() as *mut _, map.len(), resident.as_mut_ptr()) };
+        assert_eq!(r, 0, "{}", io::Error::last_os_error());
+        let cached = resident.iter().filter(|&&b| b & 1 == 1).count();
+        assert_eq!(
+            cached,
+            0,
+            "{cached} of {} pages in the page cache",
+            resident.len()
+        );
+        assert!(map[..] == bytes[..]);
     }
 
     #[test]
