@@ -41,7 +41,7 @@ const WRITE_PIECE: usize = 64 << 10;
 /// Files written whole from memory ([`Folder::write_atomic`], [`write_atomic_stat`])
 /// of at least this many bytes go around the page cache (`O_DIRECT`, on Linux,
 /// where the file system takes it): the bytes are copied into an aligned buffer
-/// the thread keeps, written in one call, and the file cut to its length. Every
+/// kept for the next file, written in one call, and the file cut to its length. Every
 /// file is synced before its rename anyway, so the call waits for the device as
 /// the sync did. On the virtual machines of this project (Linux 6.18 guests that
 /// hand free memory back to their host) the page cache's fresh pages for a new
@@ -66,10 +66,10 @@ fn buffered(file: File, fill: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> 
 /// Direct writes (`O_DIRECT`): see [`DIRECT_FROM`].
 #[cfg(target_os = "linux")]
 mod direct {
-    use std::cell::RefCell;
     use std::fs::File;
     use std::io;
     use std::os::unix::fs::FileExt;
+    use std::sync::Mutex;
 
     use rustix::fs::{fcntl_getfl, fcntl_setfl, OFlags};
 
@@ -80,11 +80,9 @@ mod direct {
     #[repr(C, align(4096))]
     struct Block([u8; DIRECT_ALIGN]);
 
-    thread_local! {
-        /// The thread's aligned buffer, kept from file to file, so that writing a
-        /// frame does not touch fresh memory either.
-        static BUFFER: RefCell<Vec<Block>> = const { RefCell::new(Vec::new()) };
-    }
+    /// Aligned buffers kept from file to file (one per file being written at
+    /// once), so that writing a frame does not touch fresh memory either.
+    static BUFFERS: Mutex<Vec<Vec<Block>>> = Mutex::new(Vec::new());
 
     /// Writes `bytes` into the new, empty `file` around the page cache: `Ok(true)`
     /// once written, `Ok(false)` if the file system does not take direct writes
@@ -95,7 +93,12 @@ mod direct {
         if fcntl_setfl(file, flags | OFlags::DIRECT).is_err() {
             return Ok(false);
         }
-        let written = BUFFER.with_borrow_mut(|blocks| {
+        let mut blocks = BUFFERS
+            .lock()
+            .ok()
+            .and_then(|mut b| b.pop())
+            .unwrap_or_default();
+        let written = {
             let n = bytes.len().div_ceil(DIRECT_ALIGN);
             if blocks.len() < n {
                 blocks.resize(n, Block([0; DIRECT_ALIGN]));
@@ -110,7 +113,10 @@ mod direct {
             // at offset 0, not through the cursor: a refused write leaves it at the
             // start for the buffered one
             file.write_all_at(buf, 0)
-        });
+        };
+        if let Ok(mut b) = BUFFERS.lock() {
+            b.push(blocks);
+        }
         fcntl_setfl(file, flags)?;
         match written {
             Ok(()) => {
@@ -745,7 +751,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let folder = Folder::open(dir.path()).unwrap();
         // buffered and direct sizes, whole blocks and not, and small files after
-        // large ones (the thread's kept buffer must not show its older bytes)
+        // large ones (a kept buffer must not show its older bytes)
         let sizes = [
             (4 << 20) + 123,
             100,

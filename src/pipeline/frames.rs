@@ -1,6 +1,6 @@
 //! The parallel rendering of the remaining frames, batch by batch: distinct views
 //! rendered once (stereo reuse), handed to the sink with their grey windows. A
-//! batch is written while the next one renders.
+//! batch is written, by a thread of its own, while the next one renders.
 
 use std::collections::{BTreeSet, HashMap, HashSet};
 use std::path::PathBuf;
@@ -206,51 +206,60 @@ pub(super) fn render_passes(
             })
             .collect::<Vec<(CacheKey, Rendered)>>()
     };
-    // Hands the frames of batch `b` to the sink, from the cached views.
-    let write = |b: usize, cache: &HashMap<CacheKey, Rendered>| -> Result<Written, Error> {
-        batches[b]
-            .par_iter()
-            .map(|&(p, k)| {
-                let cks: Vec<CacheKey> = views.eyes().iter().map(|&e| cache_key(p, k, e)).collect();
-                let eyes: Vec<EyeView> = views
-                    .eyes()
-                    .iter()
-                    .zip(&cks)
-                    .map(|(&eye, ck)| {
-                        let r = &cache[ck];
-                        EyeView {
-                            eye,
-                            key: ck.1,
-                            view: r.view,
-                            film: &r.film,
-                            samples: r.samples,
-                        }
-                    })
-                    .collect();
-                let seconds = cks
-                    .iter()
-                    .collect::<HashSet<_>>()
-                    .into_iter()
-                    .map(|ck| &cache[ck])
-                    .filter(|r| r.first == (p, k))
-                    .map(|r| r.seconds)
-                    .sum();
-                let files = sink(&FrameViews {
-                    pass: p,
-                    frame: k,
-                    window: windows[p],
-                    eyes,
-                    seconds,
-                })?;
-                progress.advance(1);
-                Ok(((p, k), files))
+    // Hands frame `k` of pass `p` to the sink, from the cached views.
+    let write_one = |&(p, k): &(usize, usize),
+                     cache: &HashMap<CacheKey, Rendered>|
+     -> Result<((usize, usize), Vec<PathBuf>), Error> {
+        let cks: Vec<CacheKey> = views.eyes().iter().map(|&e| cache_key(p, k, e)).collect();
+        let eyes: Vec<EyeView> = views
+            .eyes()
+            .iter()
+            .zip(&cks)
+            .map(|(&eye, ck)| {
+                let r = &cache[ck];
+                EyeView {
+                    eye,
+                    key: ck.1,
+                    view: r.view,
+                    film: &r.film,
+                    samples: r.samples,
+                }
             })
-            .collect()
+            .collect();
+        let seconds = cks
+            .iter()
+            .collect::<HashSet<_>>()
+            .into_iter()
+            .map(|ck| &cache[ck])
+            .filter(|r| r.first == (p, k))
+            .map(|r| r.seconds)
+            .sum();
+        let files = sink(&FrameViews {
+            pass: p,
+            frame: k,
+            window: windows[p],
+            eyes,
+            seconds,
+        })?;
+        progress.advance(1);
+        Ok(((p, k), files))
+    };
+    // The frames of batch `b`, one after another or on the workers.
+    let write = |b: usize, cache: &HashMap<CacheKey, Rendered>, parallel: bool| {
+        if parallel {
+            batches[b].par_iter().map(|j| write_one(j, cache)).collect()
+        } else {
+            batches[b]
+                .iter()
+                .map(|j| write_one(j, cache))
+                .collect::<Result<Written, Error>>()
+        }
     };
     progress.start(jobs.len() as u64);
-    // Batch `b` renders while batch `b - 1` is written: the writes (encoding,
-    // hashing, the file system's locks) and the renders' last bands no longer
-    // leave a thread idle while the other finishes.
+    // Batch `b` renders on the workers while a thread of its own writes batch
+    // `b - 1`: the writes' encoding and hashing fill the time the workers would
+    // wait for each other at the end of a batch, and their waits on the device
+    // (the sync before each rename) hold no worker.
     for b in 0..=batches.len() {
         let todo = if b < batches.len() {
             todo_of(b, &cache)
@@ -262,13 +271,23 @@ pub(super) fn render_passes(
                 .entry(ck.0)
                 .or_insert_with(|| plan.variants[ck.0].prepare(&resources));
         }
-        let (fresh, written) = rayon::join(
-            || render(&todo, &runtimes),
-            || match b.checked_sub(1) {
-                Some(w) => write(w, &cache),
-                None => Ok(Vec::new()),
-            },
-        );
+        let (fresh, written) = match b.checked_sub(1) {
+            None => (render(&todo, &runtimes), Ok(Vec::new())),
+            // the last batch: nothing left to render beside it
+            Some(w) if todo.is_empty() => (Vec::new(), write(w, &cache, true)),
+            Some(w) => std::thread::scope(|s| {
+                let writer = std::thread::Builder::new()
+                    .name("volcast-writer".into())
+                    .spawn_scoped(s, || write(w, &cache, false));
+                let fresh = render(&todo, &runtimes);
+                let written = match writer {
+                    Ok(h) => h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)),
+                    // no thread to be had: after the renders, on the workers
+                    Err(_) => write(w, &cache, true),
+                };
+                (fresh, written)
+            }),
+        };
         results.extend(written?);
         if let Some(w) = b.checked_sub(1) {
             cache.retain(|ck, _| last_use.get(ck).is_some_and(|&last| last > w));
