@@ -92,6 +92,7 @@ pub struct SceneArgs {
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     pub size: Option<(usize, usize)>,
     /// Worker threads (default: one per core). Output is identical for any value.
+    /// Frames are written by one more thread, which mostly waits on the disk.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
     /// Most memory the run may use, e.g. `8G`, `512M` (default: 16G or 3/4 of RAM):
