@@ -1,6 +1,7 @@
 //! A shared output folder where someone else planted symbolic links (issue 10,
 //! item 1): volcast never writes through a link, at a temporary name, at a final
 //! name or at `manifest.d`, and a link at `manifest.d` or `manifest.json` is an error.
+//! A frame that cannot be written ends the run, naming it.
 
 #![cfg(unix)]
 
@@ -138,4 +139,48 @@ fn a_planted_record_link_is_not_read() {
         err.contains("mip_0001.json") && err.contains("is a symbolic link"),
         "{err}"
     );
+}
+
+#[test]
+fn a_frame_that_cannot_be_written_ends_the_run_with_its_name() {
+    // ten frames on two threads: batches of four, each written (by a thread of its
+    // own) while the next renders; a folder at frame 5's name makes its rename fail
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = SCENE.replace("frames = 3", "frames = 10");
+    std::fs::write(tmp.path().join("s.toml"), scene).unwrap();
+    let out = tmp.path().join("out");
+    std::fs::create_dir_all(out.join("mip_0005.png")).unwrap();
+    let o = volcast(
+        tmp.path(),
+        &[
+            "render",
+            "s.toml",
+            "--out",
+            "out",
+            "--quiet",
+            "--threads",
+            "2",
+        ],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("mip_0005.png"), "{err}");
+    let names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    // the frames before it are written whole, none after its batch, and no
+    // temporary file is left
+    for k in 0..5 {
+        let f = out.join(format!("mip_{k:04}.png"));
+        assert!(
+            f.is_file() && std::fs::metadata(&f).unwrap().len() > 0,
+            "{names:?}"
+        );
+    }
+    assert!(out.join("mip_0005.png").is_dir());
+    for k in 8..10 {
+        assert!(!out.join(format!("mip_{k:04}.png")).exists(), "{names:?}");
+    }
+    assert!(!names.iter().any(|n| n.ends_with(".tmp")), "{names:?}");
 }
