@@ -169,13 +169,26 @@ pub trait Consumer {
     /// `Break(k)` when sample `from + k` ended the ray.
     #[inline(always)]
     fn take_batch(&mut self, from: usize, ts: &[f64], values: &[f32]) -> ControlFlow<usize> {
-        for k in 0..values.len() {
-            if self.take(from + k, ts[k], values[k]).is_break() {
-                return ControlFlow::Break(k);
-            }
-        }
-        ControlFlow::Continue(())
+        take_each(self, from, ts, values)
     }
+}
+
+/// [`Consumer::take`] of each sample of a batch in order (the default
+/// [`Consumer::take_batch`], and the way of a consumer's own for the batches it
+/// does not handle at once).
+#[inline(always)]
+fn take_each<C: Consumer + ?Sized>(
+    consumer: &mut C,
+    from: usize,
+    ts: &[f64],
+    values: &[f32],
+) -> ControlFlow<usize> {
+    for k in 0..values.len() {
+        if consumer.take(from + k, ts[k], values[k]).is_break() {
+            return ControlFlow::Break(k);
+        }
+    }
+    ControlFlow::Continue(())
 }
 
 /// The one sampling loop: hands `consumer` the samples of `lattice` along `ray`
@@ -361,7 +374,7 @@ struct Batch {
 /// stopping early wastes little. Measured (`bench/peers/README.md`, "batches of
 /// 64"): 64 took 0.79-0.81x the time of 16 for X-ray frames and 0.85-0.96x for
 /// composite ones, and made no difference to MIP and iso-surface frames.
-const BATCH: usize = 64;
+pub(super) const BATCH: usize = 64;
 
 impl Default for Batch {
     fn default() -> Self {
