@@ -68,6 +68,8 @@ pub struct Kernel<'a, F: Field, I: Integrand> {
     pub grid: Option<&'a MacroGrid>,
     /// Sample spacing in world units.
     pub dt: f64,
+    /// `1 / dt`, for every ray's march.
+    inv_dt: f64,
     /// Per-pass seed of the jittered first sample; `None` = no jitter.
     pub jitter: Option<u64>,
     /// The clipping planes that apply to the pass.
@@ -94,6 +96,7 @@ impl<'a, F: Field, I: Integrand> Kernel<'a, F, I> {
             integrand,
             grid,
             dt,
+            inv_dt: 1.0 / dt,
             jitter,
             clips,
             footprint: OnceLock::new(),
@@ -165,7 +168,7 @@ impl<'a, F: Field, I: Integrand> Kernel<'a, F, I> {
             let (e, f) = (view.eye, view.forward);
             jitter_fraction(seed, [e.x, e.y, e.z, f.x, f.y, f.z], i, j)
         });
-        let march = March::jittered(t_enter, t_exit, self.dt, jitter);
+        let march = March::jittered_by(t_enter, t_exit, self.dt, self.inv_dt, jitter);
         // the grid's ranges hold for this ray's samples (for every ray but those far
         // from a grid without the margin)
         let (o, d) = (index.o.to_array(), index.d.to_array());

@@ -108,9 +108,19 @@ impl March {
     /// `jitter` in `[0, 1)` (0 = the plain march, bit for bit): the samples are
     /// `t0`, `t0 + (1 - jitter) dt`, `t0 + (2 - jitter) dt`, ..., `t1`.
     pub fn jittered(t0: f64, t1: f64, dt: f64, jitter: f64) -> March {
+        March::jittered_by(t0, t1, dt, 1.0 / dt, jitter)
+    }
+
+    /// [`March::jittered`] with the step's reciprocal `inv_dt = 1 / dt` computed
+    /// once for every ray of a pass (a division per ray fewer).
+    #[inline]
+    pub fn jittered_by(t0: f64, t1: f64, dt: f64, inv_dt: f64, jitter: f64) -> March {
+        debug_assert_eq!(inv_dt.to_bits(), (1.0 / dt).to_bits());
         let shift = -jitter.clamp(0.0, 1.0 - f64::EPSILON);
         let len = (t1 - t0).max(0.0);
-        let full_steps = (len / dt - shift).floor() as usize;
+        // `len / dt - shift` is at least 0 (or NaN), where the conversion's
+        // truncation is the floor (and NaN gives 0 either way): no library call
+        let full_steps = (len / dt - shift) as usize;
         // a tail shorter than a millionth of a step is merged into the last sample
         let tail = len - (full_steps as f64 + shift) * dt > 1e-6 * dt;
         let first_full = if shift == 0.0 { 1 } else { 2 };
@@ -118,7 +128,7 @@ impl March {
             t0,
             t1,
             dt,
-            inv_dt: 1.0 / dt,
+            inv_dt,
             shift,
             full_steps,
             tail,
@@ -426,6 +436,33 @@ mod tests {
                 mid.fill(from, &mut ts);
                 for (k, t) in ts.iter().enumerate() {
                     assert_eq!(t.to_bits(), mid.t(from + k).to_bits(), "{from} {k}");
+                }
+            }
+        }
+    }
+
+    /// The whole steps counted without the floor's library call are the floor's,
+    /// for short, long, empty, reversed, huge and NaN segments and jitters.
+    #[test]
+    fn whole_steps_are_the_floor_of_the_length_in_steps() {
+        let ends = [
+            (0.0, 0.0),
+            (0.3, 17.9),
+            (5.0, 4.0),
+            (-1e300, 1e300),
+            (0.0, f64::INFINITY),
+            (f64::NAN, 3.0),
+            (0.0, 1.0 - 1e-17),
+        ];
+        for (t0, t1) in ends {
+            for dt in [0.5, 0.7, 1e-300, 3.0] {
+                for jitter in [0.0, 0.25, 0.999_999, f64::NAN] {
+                    let m = March::jittered(t0, t1, dt, jitter);
+                    let shift = -jitter.clamp(0.0, 1.0 - f64::EPSILON);
+                    let len = (t1 - t0).max(0.0);
+                    let floor = (len / dt - shift).floor() as usize;
+                    assert_eq!(m.full_steps, floor, "{t0} {t1} {dt} {jitter}");
+                    assert_eq!(m.inv_dt.to_bits(), (1.0 / dt).to_bits());
                 }
             }
         }
