@@ -48,10 +48,12 @@ const WRITE_PIECE: usize = 64 << 10;
 /// 4 MiB file cost 20-35 ms of system time in spells, 1-3 ms between them, while
 /// the direct write takes 0.2 ms (`bench/write_pieces.py`); and a long run's
 /// frames no longer push a mapped volume's pages out of the cache.
+#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
 const DIRECT_FROM: usize = 256 << 10;
 
 /// The alignment of a direct write's buffer address, file offset and length: 4 KiB,
 /// the largest logical block of common devices.
+#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
 const DIRECT_ALIGN: usize = 4096;
 
 /// Writes `file` from the start through a buffer, in pieces of at most
