@@ -459,8 +459,9 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
 
     /// A batch of whole steps through a 1D table, unshaded (the common case), in
     /// two loops: the lookups, each sample's independent of the others, keeping
-    /// the samples that are not transparent; then their front-to-back
-    /// accumulation, in order. Each sample goes through the operations of
+    /// up to [`KEPT`] samples that are not transparent; then their front-to-back
+    /// accumulation, in order; and again to the batch's end. Each sample goes
+    /// through the operations of
     /// [`Consumer::take`], so the bits are the same. Split, the lookups overlap
     /// one another, and the accumulation runs in a loop of its own
     /// ([`FrontToBack::add_all`]) that keeps its state in registers: 0.89-0.92x the
@@ -479,38 +480,44 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
         if !plain {
             return take_each(self, from, ts, values);
         }
-        // the samples kept: their indices in the batch and their colours
-        let mut index = [MaybeUninit::<u8>::uninit(); BATCH];
-        let mut rgbas = [MaybeUninit::<[f32; 4]>::uninit(); BATCH];
-        let mut m = 0;
-        for (k, &v) in values.iter().enumerate() {
-            let y = clamp_unit(v);
-            if p.clear_unit(y) {
-                continue;
+        // the samples kept, a chunk at a time: their indices in the batch and their
+        // colours
+        let mut index = [MaybeUninit::<u8>::uninit(); KEPT];
+        let mut rgbas = [MaybeUninit::<[f32; 4]>::uninit(); KEPT];
+        let mut k = 0;
+        while k < n {
+            let mut m = 0;
+            while k < n && m < KEPT {
+                let v = values[k];
+                k += 1;
+                let y = clamp_unit(v);
+                if p.clear_unit(y) {
+                    continue;
+                }
+                let x = p.position_of_unit(y);
+                // SAFETY: as in `take` (x is in [0, value_last]); a 1D table reads
+                // neither the field nor the position
+                let (rgba, _) = unsafe {
+                    self.tables
+                        .full_step
+                        .rgba(self.field, || DVec3::ZERO, v, x, p.voxel_length)
+                };
+                if rgba[3] <= 0.0 {
+                    continue;
+                }
+                const _: () = assert!(BATCH <= 256, "a batch's indices are kept as u8");
+                index[m].write((k - 1) as u8);
+                rgbas[m].write(rgba);
+                m += 1;
             }
-            let x = p.position_of_unit(y);
-            // SAFETY: as in `take` (x is in [0, value_last]); a 1D table reads
-            // neither the field nor the position
-            let (rgba, _) = unsafe {
-                self.tables
-                    .full_step
-                    .rgba(self.field, || DVec3::ZERO, v, x, p.voxel_length)
-            };
-            if rgba[3] <= 0.0 {
-                continue;
+            // SAFETY: the first `m` of each were written above
+            let kept = unsafe { std::slice::from_raw_parts(rgbas.as_ptr().cast::<[f32; 4]>(), m) };
+            if let Some(j) = self.acc.add_all(kept) {
+                // SAFETY: j < m
+                return ControlFlow::Break(usize::from(unsafe { index[j].assume_init() }));
             }
-            const _: () = assert!(BATCH <= 256, "a batch's indices are kept as u8");
-            index[m].write(k as u8);
-            rgbas[m].write(rgba);
-            m += 1;
         }
-        // SAFETY: the first `m` of each were written above
-        let rgbas = unsafe { std::slice::from_raw_parts(rgbas.as_ptr().cast::<[f32; 4]>(), m) };
-        match self.acc.add_all(rgbas) {
-            // SAFETY: j < m
-            Some(j) => ControlFlow::Break(usize::from(unsafe { index[j].assume_init() })),
-            None => ControlFlow::Continue(()),
-        }
+        ControlFlow::Continue(())
     }
 
     /// Midpoint `i` is the middle of the segment from sample `i` to sample `i + 1`.
@@ -565,6 +572,13 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
         self.acc.add(c, a)
     }
 }
+
+/// Samples kept by [`Midpoint::take_batch`]'s lookups before they are composited:
+/// a ray that stops early has looked up at most this many samples beyond its last.
+/// A whole batch (64) at once made a frame of an opaque transfer function 1.05x
+/// the time of one sample at a time; 16 makes it 0.97x, and the peer composites'
+/// time the same as 64's (`bench/peers/README.md`, eighteenth round).
+const KEPT: usize = 16;
 
 /// Compositing of pre-integrated segments between consecutive samples.
 struct Segments<'a, F: Field> {
