@@ -324,6 +324,20 @@ impl Composite {
     fn position_of_unit(&self, y: f32) -> f32 {
         y * self.value_last
     }
+
+    /// The table position of sample value `v`, or `None` where it is clear: the
+    /// start of every midpoint sample's compositing, one sample at a time or a
+    /// batch at once. The position is in [0, value_last]: `clamp_unit(v)` is in
+    /// [0, 1], the product rounds monotonically, and 1 * value_last is exact.
+    #[inline(always)]
+    fn position_unless_clear(&self, v: f32) -> Option<f32> {
+        let y = clamp_unit(v);
+        if self.clear_unit(y) {
+            None
+        } else {
+            Some(self.position_of_unit(y))
+        }
+    }
 }
 
 /// The largest `y` in [0, 1] with `y * last <= up_to` in f32 (the table position of
@@ -461,9 +475,9 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     /// two loops: the lookups, each sample's independent of the others, keeping
     /// up to [`KEPT`] samples that are not transparent; then their front-to-back
     /// accumulation, in order; and again to the batch's end. Each sample goes
-    /// through the operations of
-    /// [`Consumer::take`], so the bits are the same. Split, the lookups overlap
-    /// one another, and the accumulation runs in a loop of its own
+    /// through the operations of [`Consumer::take`] (its start is the same
+    /// [`Composite::position_unless_clear`]), so the bits are the same. Split, the
+    /// lookups overlap one another, and the accumulation runs in a loop of its own
     /// ([`FrontToBack::add_all`]) that keeps its state in registers: 0.89-0.92x the
     /// CPU time of the peer composites (`bench/peers/README.md`, eighteenth round).
     /// Other batches are taken one sample at a time.
@@ -490,11 +504,9 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
             while k < n && m < KEPT {
                 let v = values[k];
                 k += 1;
-                let y = clamp_unit(v);
-                if p.clear_unit(y) {
+                let Some(x) = p.position_unless_clear(v) else {
                     continue;
-                }
-                let x = p.position_of_unit(y);
+                };
                 // SAFETY: as in `take` (x is in [0, value_last]); a 1D table reads
                 // neither the field nor the position
                 let (rgba, _) = unsafe {
@@ -524,17 +536,14 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     #[inline(always)]
     fn take(&mut self, i: usize, t: f64, v: f32) -> ControlFlow<()> {
         let p = self.pass;
-        let y = clamp_unit(v);
-        if p.clear_unit(y) {
+        let Some(x) = p.position_unless_clear(v) else {
             return ControlFlow::Continue(());
-        }
-        let x = p.position_of_unit(y);
+        };
         let full = self.march.is_full_step(i + 1);
         let pos = || self.ray.index.at(t);
-        // SAFETY (both lookups): y is in [0, 1], so x = y * value_last is in [0,
-        // value_last] (the product rounds monotonically, and 1 * value_last is
-        // exact), and both tables have value_last + 1 entries along the value axis
-        // (`Composite::new`)
+        // SAFETY (both lookups): x is in [0, value_last]
+        // (`Composite::position_unless_clear`), and both tables have value_last + 1
+        // entries along the value axis (`Composite::new`)
         let (rgba, grad, a) = if full {
             // opacity already corrected for a whole step
             let (rgba, grad) = unsafe {
