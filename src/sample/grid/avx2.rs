@@ -294,13 +294,15 @@ impl<T: Voxel> Grid<'_, T> {
 
 /// The two adjacent float32 voxels at flat index `at` of `data`, as one 64-bit
 /// word: what each lane of the float32 paths reads, with a scalar load rather
-/// than a gather instruction. On the machines this project runs on, a gather is
+/// than a gather instruction. On the Intel host of 2026-12-03 a gather is
 /// microcoded (the 2023 "Gather Data Sampling" mitigation): about 29 cycles each,
 /// whatever its width, where eight scalar loads and the inserts that make them a
 /// vector take about 7 (measured: bench/peers/README.md, "Loads, not gathers").
 /// On an AMD host of the same machine kind (2026-12-04), whose gathers are not
 /// microcoded, an eight-lane gather per row still made X-ray frames 1.16x and
-/// MIP frames 1.06x slower.
+/// MIP frames 1.06x slower; on the Intel host of 2026-12-05, whose gathers are
+/// not microcoded either (9 cycles for eight 64-bit lanes), gathering the 8-bit
+/// composite's voxel pairs was no faster (0.97x-1.08x, nineteenth round).
 ///
 /// # Safety
 /// Voxels `at` and `at + 1` are inside `data`'s allocation.
