@@ -301,8 +301,9 @@ impl<T: Voxel> Grid<'_, T> {
 /// On an AMD host of the same machine kind (2026-12-04), whose gathers are not
 /// microcoded, an eight-lane gather per row still made X-ray frames 1.16x and
 /// MIP frames 1.06x slower; on the Intel host of 2026-12-05, whose gathers are
-/// not microcoded either (9 cycles for eight 64-bit lanes), gathering the 8-bit
-/// composite's voxel pairs was no faster (0.97x-1.08x, nineteenth round).
+/// not microcoded either (an eight-lane gather about half the time of eight
+/// scalar loads put into a vector), gathering the 8-bit composite's voxel pairs
+/// was no faster (0.97x-1.08x, nineteenth round).
 ///
 /// # Safety
 /// Voxels `at` and `at + 1` are inside `data`'s allocation.
