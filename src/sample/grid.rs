@@ -136,6 +136,11 @@ pub struct Grid<'a, T: Voxel> {
     /// machine has AVX-512.
     #[cfg(target_arch = "x86_64")]
     wide: bool,
+    /// The eight-lane path reads a float32 row of eight lanes with one gather
+    /// instruction rather than eight scalar loads ([`avx512::gathers_pay`]): the
+    /// same words, so the same bits.
+    #[cfg(target_arch = "x86_64")]
+    row_gathers: bool,
     /// The [`pair_table`] of `lut` for 8-bit voxels ([`Grid::with_pairs`]), or empty.
     #[cfg(target_arch = "x86_64")]
     pairs: &'a [[f32; 2]],
@@ -209,6 +214,8 @@ impl<'a, T: Voxel> Grid<'a, T> {
             gather,
             #[cfg(target_arch = "x86_64")]
             wide: gather.is_some() && avx512::available(),
+            #[cfg(target_arch = "x86_64")]
+            row_gathers: avx512::gathers_pay(),
             #[cfg(target_arch = "x86_64")]
             pairs: &[],
         }

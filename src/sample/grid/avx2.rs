@@ -463,18 +463,24 @@ mod tests {
                     outs.push(out);
                     paths[0] += 1;
                     if super::super::avx512::available() {
-                        let mut out = vec![0.0f32; count];
-                        // SAFETY: and AVX-512
-                        unsafe { g.trilinear_avx512(o, d, &ts, &mut out) };
-                        outs.push(out);
-                        paths[1] += 1;
+                        // rows read with loads and with gathers, whichever this
+                        // machine's grids choose
+                        for row_gathers in [false, true] {
+                            let g = Grid { row_gathers, ..g };
+                            let mut out = vec![0.0f32; count];
+                            // SAFETY: and AVX-512
+                            unsafe { g.trilinear_avx512(o, d, &ts, &mut out) };
+                            outs.push(out);
+                            paths[1] += 1;
+                        }
                     }
                 }
                 for (k, &t) in ts.iter().enumerate() {
                     let p = [0, 1, 2].map(|a| o[a] + d[a] * t);
                     let bits = reference.trilinear(p).to_bits();
                     assert_eq!(g.trilinear(p).to_bits(), bits, "single {n:?} {p:?}");
-                    for (path, out) in ["dispatch", "AVX2", "AVX-512"].iter().zip(&outs) {
+                    let paths = ["dispatch", "AVX2", "AVX-512 loads", "AVX-512 gathers"];
+                    for (path, out) in paths.iter().zip(&outs) {
                         assert_eq!(out[k].to_bits(), bits, "{path} {n:?} {p:?}");
                     }
                 }

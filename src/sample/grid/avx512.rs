@@ -1,7 +1,9 @@
 //! Trilinear samples eight at a time with AVX-512 (detected at run time): the
 //! AVX2 path of `avx2.rs` on twice as many lanes. The positions and the cell search
 //! take 512-bit f64 lanes, the voxel loads 64-bit indices in 512-bit vectors (read
-//! lane by lane, as in `avx2.rs`), and the interpolation 256-bit f32 lanes. Each lane does the operations of
+//! lane by lane, as in `avx2.rs`, or with a gather per float32 row on the
+//! processors where gathers pay, [`gathers_pay`]), and the interpolation 256-bit
+//! f32 lanes. Each lane does the operations of
 //! [`Grid::trilinear_sse2`] in the same order (no fused multiply-add), so a sample
 //! has the same bits whichever path takes it.
 
@@ -15,6 +17,29 @@ use crate::volume::Voxel;
 /// the 256-bit halves).
 pub(super) fn available() -> bool {
     std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx2")
+}
+
+/// Whether the eight-lane float32 path reads its rows with gather instructions:
+/// on Intel's server cores from Sapphire Rapids on (family 6, models 0x8f and
+/// 0xcf), which the "Gather Data Sampling" mitigation does not cover, an
+/// eight-lane gather takes about half the time of eight scalar loads put into a
+/// vector, and it made the peer benchmark's float32 frames 0.83-1.01x the time
+/// (Emerald Rapids, model 0xcf, `bench/peers/README.md`, twentieth round).
+/// Elsewhere they do not pay: microcoded by that mitigation on the Intel host of
+/// 2026-12-03 (about four times the time of the loads), and 1.06-1.16x the time of
+/// the loads on the AMD host of 2026-12-04 (family 26). Either way a row reads
+/// the same two words, so the choice changes the time and not the bits.
+pub(super) fn gathers_pay() -> bool {
+    static PAY: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *PAY.get_or_init(|| {
+        // (every x86-64 processor has CPUID leaves 0 and 1)
+        let (vendor, signature) = (__cpuid(0), __cpuid(1).eax);
+        // "GenuineIntel", as EBX, EDX, ECX
+        let intel = [vendor.ebx, vendor.edx, vendor.ecx] == [0x756e_6547, 0x4965_6e69, 0x6c65_746e];
+        let family = (signature >> 8) & 0xf;
+        let model = ((signature >> 4) & 0xf) | ((signature >> 12) & 0xf0);
+        intel && family == 6 && matches!(model, 0x8f | 0xcf)
+    })
 }
 
 /// One axis' broadcast constants (as in `avx2.rs`, eight lanes).
@@ -158,8 +183,17 @@ impl<T: Voxel> Grid<'_, T> {
         base: __m512i,
         rows: [i64; 4],
     ) -> [(__m256, __m256); 4] {
-        let base: [i64; 8] = std::mem::transmute(base);
         let data: *const f32 = self.voxels.as_ptr().cast();
+        if KIND != ROW_PAIRS && self.row_gathers {
+            // SAFETY (the caller's): as for the loads below, each lane's word is
+            // the two voxels from a cell's row start, 4 bytes per index
+            let row = |r: usize| {
+                let at = _mm512_add_epi64(base, _mm512_set1_epi64(rows[r]));
+                self.row_words_x8::<KIND>(_mm512_i64gather_epi64::<4>(at, data.cast()))
+            };
+            return [row(0), row(1), row(2), row(3)];
+        }
+        let base: [i64; 8] = std::mem::transmute(base);
         // SAFETY (the caller's): every `base + rows[r]` is a cell's row start, so
         // it and the voxel after it are in the data
         let row = |r: usize| {
