@@ -125,7 +125,8 @@ fn check_prints_the_plan_and_writes_nothing() {
         "{out}"
     );
     // its 8-bit voxels are read in pairs where the machine's vector paths do so
-    let pairs = "8-bit voxels read two at a time through a table of normalised pairs (512.0 KiB)";
+    let pairs = "8-bit voxels read two at a time through a table of normalised pairs (512.0 KiB; \
+                 none for unsigned voxels the window covers: interpolated as they are)";
     assert_eq!(out.contains(pairs), volcast::sample::reads_pairs(), "{out}");
     // a MIP computes neither gradients nor tables, skips cells that cannot beat its
     // maximum and walks only where cells are not all zero, and says so; --no-skip

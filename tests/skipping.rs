@@ -1,7 +1,9 @@
 //! Empty-space skipping changes no pixel (issue 7, item 2): every mode, filter and
 //! integration method rendered with and without skipping gives the same bits, and
 //! skipping does skip. So does the sampler's other shortcut, float32 voxels read
-//! without their clamp when all lie in the window [0, 1] (the last test). The
+//! without their clamp when all lie in the window [0, 1]; and 8-bit voxels that
+//! the window covers, interpolated as bytes, render the interpolant of the
+//! normalised voxels (the last two tests). The
 //! volume is three blobs in air (a CT-like layout), stored as uint8, int16 and
 //! float32, seen from several sides, orthographic and perspective.
 
@@ -223,6 +225,23 @@ fn depth_cued_mip_skips_without_changing_a_pixel() {
 /// of the blobs' air is set to 3.0, outside the window, which makes the renderer
 /// clamp every voxel, and to 1.0, which does not: the two images are the same bits,
 /// and differ from the blobs' own where the odd voxel is seen.
+/// A scene of X-ray, MIP and composite passes over the volume at `path`, with
+/// `window` (else the data's range), orthographic, 48 x 40 pixels.
+fn three_passes(path: &Path, window: Option<[f64; 2]>) -> String {
+    let window = window.map_or(String::new(), |[lo, hi]| format!("window = [{lo}, {hi}]\n"));
+    format!(
+        "[volume]\npath = {:?}\n{window}\
+         [camera]\nprojection = \"orthographic\"\nazimuth = 20\nelevation = 15\n\
+         [image]\nsize = [48, 40]\nformat = \"nrrd\"\n\
+         [[render]]\nname = \"x\"\nmode = \"xray\"\nstep = 0.5\n\
+         [[render]]\nname = \"m\"\nmode = \"mip\"\nstep = 0.5\n\
+         [[render]]\nname = \"c\"\nmode = \"composite\"\ntransfer = \"ramp\"\n\
+         [transfer.ramp]\ncolor = [[0.0, [1.0, 1.0, 1.0]], [1.0, [1.0, 0.5, 0.2]]]\n\
+         alpha = [[0.0, 0.0], [0.1, 0.0], [1.0, 0.8]]\n",
+        path.to_str().unwrap()
+    )
+}
+
 #[test]
 fn float_voxels_inside_the_window_read_unclamped_give_the_clamped_bits() {
     let n = 33;
@@ -245,17 +264,7 @@ fn float_voxels_inside_the_window_read_unclamped_give_the_clamped_bits() {
         let p = dir.path().join(format!("{name}.nrrd"));
         let bytes = nrrd::encode(&h, &VolumeData::F32(data)).expect("encodes");
         std::fs::write(&p, bytes).expect("writes");
-        let scene = format!(
-            "[volume]\npath = {:?}\nwindow = [0.0, 1.0]\n\
-             [camera]\nprojection = \"orthographic\"\nazimuth = 20\nelevation = 15\n\
-             [image]\nsize = [48, 40]\nformat = \"nrrd\"\n\
-             [[render]]\nname = \"x\"\nmode = \"xray\"\nstep = 0.5\n\
-             [[render]]\nname = \"m\"\nmode = \"mip\"\nstep = 0.5\n\
-             [[render]]\nname = \"c\"\nmode = \"composite\"\ntransfer = \"ramp\"\n\
-             [transfer.ramp]\ncolor = [[0.0, [1.0, 1.0, 1.0]], [1.0, [1.0, 0.5, 0.2]]]\n\
-             alpha = [[0.0, 0.0], [0.1, 0.0], [1.0, 0.8]]\n",
-            p.to_str().unwrap()
-        );
+        let scene = three_passes(&p, Some([0.0, 1.0]));
         films.push(render(&scene, dir.path(), false).0);
     }
     // the values whose bits differ between two images
@@ -277,5 +286,66 @@ fn float_voxels_inside_the_window_read_unclamped_give_the_clamped_bits() {
             differ(plain, one) > 0,
             "pass {pass}: the odd voxel is not seen"
         );
+    }
+}
+
+#[test]
+fn bytes_interpolated_as_they_are_render_the_normalised_interpolant() {
+    // 8-bit blobs in [20, 220]; each window's render against a float32 volume of
+    // the normalised voxels (window [0, 1]): the same interpolant up to rounding
+    // where the window covers every voxel (the bytes interpolated as they are:
+    // by the type's range, by the data's, by default) and where it clamps some
+    // (normalised first, as a clamp must be: interpolating the bytes first would
+    // put values between a clamped voxel and its neighbour elsewhere)
+    let n = 33;
+    let dir = tempfile::tempdir().unwrap();
+    let bytes: Vec<u8> = blobs(n)
+        .iter()
+        .map(|&x| 20 + (x * 200.0).round() as u8)
+        .collect();
+    let write = |name: &str, ty: ScalarType, data: VolumeData| {
+        let p = dir.path().join(format!("{name}.nrrd"));
+        let h = NrrdHeader::new(ty, vec![n, n, n]);
+        std::fs::write(&p, nrrd::encode(&h, &data).expect("encodes")).expect("writes");
+        p
+    };
+    let u8_path = write("bytes", ScalarType::Uint8, VolumeData::U8(bytes.clone()));
+    // (the default window is the data's range)
+    let range = [bytes.iter().min(), bytes.iter().max()].map(|b| f64::from(*b.unwrap()));
+    for (window, [lo, hi]) in [
+        (Some([0.0, 255.0]), [0.0, 255.0]),
+        (Some([10.0, 240.0]), [10.0, 240.0]),
+        (None, range),
+        (Some([60.0, 180.0]), [60.0, 180.0]),
+    ] {
+        let normalised: Vec<f32> = bytes
+            .iter()
+            .map(|&b| ((f64::from(b) - lo) / (hi - lo)).clamp(0.0, 1.0) as f32)
+            .collect();
+        let f32_path = write(
+            "normalised",
+            ScalarType::Float32,
+            VolumeData::F32(normalised),
+        );
+        let (of_bytes, _) = render(&three_passes(&u8_path, window), dir.path(), false);
+        let (of_floats, _) = render(
+            &three_passes(&f32_path, Some([0.0, 1.0])),
+            dir.path(),
+            false,
+        );
+        for (a, b) in of_bytes.iter().zip(&of_floats) {
+            let worst = a
+                .film
+                .data
+                .iter()
+                .zip(&b.film.data)
+                .map(|(x, y)| (x - y).abs() / y.abs().max(1.0))
+                .fold(0.0f32, f32::max);
+            assert!(
+                worst <= 2e-5,
+                "window {window:?}, pass {}: the 8-bit render differs by {worst}",
+                a.pass
+            );
+        }
     }
 }

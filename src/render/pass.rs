@@ -27,9 +27,9 @@ use super::integrator::{
 };
 use super::skip::{MacroGrid, Support};
 use crate::sample::{
-    bits_table, gradient_volume_normalised, pair_table, prefilter_normalised, reads_pairs, BSpline,
-    Cubic, Field, GradientMethod, Gradients, Grid, Interpolation, Nearest, Normalize, Trilinear,
-    PAIR_TABLE_BYTES,
+    bits_table, gradient_volume_normalised, pair_table, prefilter_normalised, raw_bytes_unclamped,
+    reads_pairs, BSpline, Cubic, Field, GradientMethod, Gradients, Grid, Interpolation, Nearest,
+    Normalize, Trilinear, PAIR_TABLE_BYTES,
 };
 use crate::scene::{Integration, MipOutput, Mode, Transfer};
 use crate::shade::{Light, Shader};
@@ -72,8 +72,13 @@ pub struct Needs {
     pub grid: Option<GridSource>,
     /// The table of normalised pairs of 8-bit voxels (512 KiB), which the vector
     /// paths of trilinear passes over 8-bit data read on machines that have them
-    /// ([`reads_pairs`]).
+    /// ([`reads_pairs`]); not built for unsigned voxels that the window covers,
+    /// which are interpolated as they are ([`Needs::raw_bytes`]).
     pub voxel_pairs: bool,
+    /// Trilinear samples of 8-bit voxels: unsigned ones are interpolated as the
+    /// bytes they are where the window covers every voxel value
+    /// ([`Grid::with_raw_bytes`]).
+    pub raw_bytes: bool,
 }
 
 /// What a pass's films hold, for display.
@@ -275,6 +280,10 @@ impl RenderPass {
             Interpolation::BSpline => GridSource::Voxels(Support::Cubic),
             Interpolation::Cubic => GridSource::Coefficients,
         });
+        // trilinear samples of 8-bit voxels (exact integration reads cells)
+        let bytes = !exact
+            && interpolation == Interpolation::Trilinear
+            && matches!(scalar_type, ScalarType::Uint8 | ScalarType::Int8);
         RenderPass {
             name: pass.name.clone(),
             mode_name: pass.mode.name(),
@@ -294,11 +303,8 @@ impl RenderPass {
                 gradient_volume,
                 coefficients: interpolation == Interpolation::Cubic,
                 grid,
-                // exact integration reads cells, not runs of samples
-                voxel_pairs: !exact
-                    && interpolation == Interpolation::Trilinear
-                    && matches!(scalar_type, ScalarType::Uint8 | ScalarType::Int8)
-                    && reads_pairs(),
+                voxel_pairs: bytes && reads_pairs(),
+                raw_bytes: bytes,
             },
             scalar_type,
             clips: Vec::new(),
@@ -437,7 +443,8 @@ impl RenderPass {
         }
         if self.needs.voxel_pairs {
             needs.push(format!(
-                "8-bit voxels read two at a time through a table of normalised pairs ({})",
+                "8-bit voxels read two at a time through a table of normalised pairs ({}; \
+                 none for unsigned voxels the window covers: interpolated as they are)",
                 human_bytes(PAIR_TABLE_BYTES)
             ));
         }
@@ -563,6 +570,7 @@ impl RenderPass {
         match self.scalar_type {
             ScalarType::Int8 | ScalarType::Int16 => grid.signed_bits(),
             ScalarType::Float32 if res.unit_voxels() => grid.with_unit_voxels(),
+            ScalarType::Uint8 if res.raw_bytes => grid.with_raw_bytes(),
             _ => grid,
         }
     }
@@ -696,6 +704,10 @@ pub struct Resources<'v> {
     lut: Vec<f32>,
     /// The [`pair_table`] of `lut`, where a pass needs it (else empty).
     pairs: Vec<[f32; 2]>,
+    /// Unsigned 8-bit voxels, sampled by a trilinear pass, that the window covers
+    /// ([`raw_bytes_unclamped`]): their grids interpolate the bytes as they are
+    /// ([`Grid::with_raw_bytes`]), and no table of pairs is built.
+    raw_bytes: bool,
     coefficients: Option<Vec<f32>>,
     gradients: Vec<(GradientMethod, Vec<[f32; 3]>)>,
     grids: Vec<(GridSource, MacroGrid)>,
@@ -837,7 +849,13 @@ fn build_typed<'v, T: Voxel>(
             (s, g)
         })
         .collect();
-    let pairs = if needs.iter().any(|n| n.voxel_pairs) {
+    let raw_bytes = data.scalar_type() == ScalarType::Uint8
+        && needs.iter().any(|n| n.raw_bytes)
+        && (raw_bytes_unclamped(norm, [0, u8::MAX])
+            || data
+                .voxels::<u8>()
+                .is_some_and(|v| raw_bytes_unclamped(norm, v.byte_range())));
+    let pairs = if needs.iter().any(|n| n.voxel_pairs) && !raw_bytes {
         pair_table(&lut)
     } else {
         Vec::new()
@@ -848,6 +866,7 @@ fn build_typed<'v, T: Voxel>(
         norm,
         lut,
         pairs,
+        raw_bytes,
         coefficients,
         gradients,
         grids,

@@ -20,6 +20,14 @@ macro_rules! each_row {
             $self.$row::<$k>($add($base, $rows[3])),
         ]
     };
+    ($self:ident . $row:ident, $add:ident, $base:expr, $rows:expr) => {
+        [
+            $self.$row($add($base, $rows[0])),
+            $self.$row($add($base, $rows[1])),
+            $self.$row($add($base, $rows[2])),
+            $self.$row($add($base, $rows[3])),
+        ]
+    };
 }
 
 /// The lanes of one call's constants ([`avx2::LaneConstants`]), broadcast with
@@ -99,6 +107,16 @@ pub fn reads_pairs() -> bool {
     return false;
 }
 
+/// Whether normalising by `norm` clamps none of the 8-bit values `lo..=hi` (the
+/// data's range), so that a grid over them may interpolate the bytes as they are
+/// ([`Grid::with_raw_bytes`]): `(v - lo) * scale` lies in [0, 1] at both ends, and
+/// so (affine, rounded monotonically) between them.
+pub fn raw_bytes_unclamped(norm: Normalize, [lo, hi]: [u8; 2]) -> bool {
+    let (l, s) = norm.lo_scale();
+    let inside = |v: u8| (0.0..=1.0).contains(&((f64::from(v) - l) * s));
+    inside(lo) && inside(hi)
+}
+
 /// Native-typed voxels read as normalised values in [0, 1]: the voxels, the grid's
 /// sizes and strides, and the value window (a table load per voxel for 8- and
 /// 16-bit data, see [`normalisation_table`]; on the vector paths, one per two 8-bit
@@ -126,6 +144,9 @@ pub struct Grid<'a, T: Voxel> {
     /// XOR turning a table index into an index in the order of the values: the sign
     /// bit for signed data read as unsigned bits, else 0.
     flip: usize,
+    /// 8-bit voxels interpolated as the bytes they are, the result normalised
+    /// ([`Grid::with_raw_bytes`]), rather than normalised and then interpolated.
+    raw_bytes: bool,
     /// Every index fits an i32 (the SSE2 cell search converts to i32).
     sse2: bool,
     /// The AVX2 path of [`Grid::trilinear_along`], when the machine and the grid
@@ -146,9 +167,10 @@ pub struct Grid<'a, T: Voxel> {
     pairs: &'a [[f32; 2]],
 }
 
-/// The normalised corners of the cell a ray sampled last (see
-/// [`Grid::trilinear_cached`]). It is keyed by the cell only, so any order of
-/// samples is fine, but one cache must serve one grid: keep one per ray.
+/// The normalised corners (on a grid of raw bytes, the bytes) of the cell a ray
+/// sampled last (see [`Grid::trilinear_cached`]). It is keyed by the cell only, so
+/// any order of samples is fine, but one cache must serve one grid: keep one per
+/// ray.
 #[derive(Clone, Copy, Debug)]
 pub struct CellCache {
     /// Flat index of the cell's first voxel (`usize::MAX`: none yet).
@@ -209,6 +231,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
             top_f: n.map(|n| n.saturating_sub(2) as f64),
             step: std::array::from_fn(|a| if n[a] >= 2 { stride[a] } else { 0 }),
             flip: 0,
+            raw_bytes: false,
             sse2: n.iter().all(|&n| n < i32::MAX as usize),
             #[cfg(target_arch = "x86_64")]
             gather,
@@ -261,6 +284,30 @@ impl<'a, T: Voxel> Grid<'a, T> {
         self
     }
 
+    /// The grid of unsigned 8-bit voxels, told that the window covers every one of
+    /// them (no voxel's normalisation is clamped: [`raw_bytes_unclamped`]): its
+    /// trilinear samples then interpolate the bytes as they are and normalise the
+    /// result (`(v - lo) * scale` in f64, clamped to [0, 1], as
+    /// [`Normalize::apply`]). Normalising is affine there, so this is the same
+    /// interpolant up to rounding (the corners are exact integers, so one rounding
+    /// fewer per corner), and its vector paths read no table: the bytes become
+    /// floats in the lanes. Every path of such a grid samples this way, on any
+    /// machine, so a sample has the same bits whichever path takes it. Any other
+    /// grid is returned unchanged.
+    pub fn with_raw_bytes(self) -> Self {
+        if T::TYPE != crate::volume::ScalarType::Uint8 || self.flip != 0 {
+            return self;
+        }
+        #[cfg(target_arch = "x86_64")]
+        let gather = self.gather.map(|_| avx2::Gather::Bits8Raw);
+        Grid {
+            raw_bytes: true,
+            #[cfg(target_arch = "x86_64")]
+            gather,
+            ..self
+        }
+    }
+
     /// The grid of signed 8- or 16-bit data read as the unsigned bits `T` (whose
     /// normalisation table, [`bits_table`], is indexed by bits).
     pub fn signed_bits(self) -> Self {
@@ -296,7 +343,8 @@ impl<'a, T: Voxel> Grid<'a, T> {
     }
 
     /// The trilinear interpolant of the normalised voxels at `p` (clamped to the
-    /// grid; NaN counts as 0), clamped to [0, 1]: along x, then y, then z.
+    /// grid; NaN counts as 0), clamped to [0, 1]: along x, then y, then z (on a
+    /// grid of raw bytes, [`Grid::with_raw_bytes`], of the bytes, then normalised).
     #[inline(always)]
     pub fn trilinear(&self, p: [f64; 3]) -> f32 {
         #[cfg(target_arch = "x86_64")]
@@ -355,13 +403,38 @@ impl<'a, T: Voxel> Grid<'a, T> {
     fn trilinear_scalar(&self, p: [f64; 3]) -> f32 {
         let c = self.locate(p);
         let [fx, fy, fz] = c.f;
-        let [c000, c100, c010, c110, c001, c101, c011, c111] = self.cell_values(c.base);
+        let [c000, c100, c010, c110, c001, c101, c011, c111] = if self.raw_bytes {
+            self.cell_bytes(c.base)
+        } else {
+            self.cell_values(c.base)
+        };
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
         let x00 = lerp(c000, c100, fx);
         let x10 = lerp(c010, c110, fx);
         let x01 = lerp(c001, c101, fx);
         let x11 = lerp(c011, c111, fx);
-        lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz).clamp(0.0, 1.0)
+        self.finish(lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz))
+    }
+
+    /// A sample from its interpolated value: clamped to [0, 1] as `f32::clamp`
+    /// does, or, for a grid of raw bytes, normalised ([`Normalize::apply`]).
+    #[inline(always)]
+    fn finish(&self, v: f32) -> f32 {
+        if self.raw_bytes {
+            self.norm.apply(f64::from(v))
+        } else {
+            v.clamp(0.0, 1.0)
+        }
+    }
+
+    /// The voxels at the corners of the cell at `base` as floats, not normalised
+    /// (a grid of raw bytes, [`Grid::with_raw_bytes`]), in the order of
+    /// [`Grid::cell_values`].
+    #[inline(always)]
+    fn cell_bytes(&self, base: usize) -> [f32; 8] {
+        let [dx, dy, dz] = self.step;
+        // SAFETY: as in `cell_values`
+        unsafe { self.voxels.corners_unchecked(base, dx, dy, dz) }.map(|v| v.to_f64() as f32)
     }
 
     /// [`Grid::trilinear_scalar`] with the cell search and the interpolation in
@@ -406,15 +479,16 @@ impl<'a, T: Voxel> Grid<'a, T> {
         // z: lane 0 towards lane 1
         let y0 = _mm_cvtss_f32(y);
         let y1 = _mm_cvtss_f32(_mm_shuffle_ps(y, y, 0b00_00_00_01));
-        (y0 + (y1 - y0) * fz).clamp(0.0, 1.0)
+        self.finish(y0 + (y1 - y0) * fz)
     }
 
     /// The normalised voxels of the cell at `base` as the interpolation along x takes
     /// them: `a` = voxels (000, 010, 001, 011), `b` = (100, 110, 101, 111). float32
     /// voxels are loaded two at a time along x and normalised in f64 lanes (the same
     /// operations as [`Normalize::apply`], so the same bits); 8-bit voxels two at a
-    /// time through the table of pairs where the grid has one ([`Grid::with_pairs`]);
-    /// the others through [`Grid::cell_values`].
+    /// time through the table of pairs where the grid has one ([`Grid::with_pairs`]),
+    /// or as they are ([`Grid::cell_bytes`]) on a grid of raw bytes; the others
+    /// through [`Grid::cell_values`].
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn cell_vectors_sse2(
@@ -444,7 +518,8 @@ impl<'a, T: Voxel> Grid<'a, T> {
             let b = _mm_shuffle_ps(lo, hi, 0b11_01_11_01);
             return (a, b);
         }
-        if T::TYPE == crate::volume::ScalarType::Uint8 && !self.pairs.is_empty() {
+        if T::TYPE == crate::volume::ScalarType::Uint8 && !self.pairs.is_empty() && !self.raw_bytes
+        {
             let [_, dy, dz] = self.step;
             // SAFETY: as above, each pair (i, i + 1) is inside the voxels (the grid
             // has a table of pairs only where x has two voxels or more, so `dx` is 1);
@@ -456,7 +531,11 @@ impl<'a, T: Voxel> Grid<'a, T> {
             let b = _mm_shuffle_ps(lo, hi, 0b11_01_11_01);
             return (a, b);
         }
-        let [c000, c100, c010, c110, c001, c101, c011, c111] = self.cell_values(base);
+        let [c000, c100, c010, c110, c001, c101, c011, c111] = if self.raw_bytes {
+            self.cell_bytes(base)
+        } else {
+            self.cell_values(base)
+        };
         (
             _mm_set_ps(c011, c001, c010, c000),
             _mm_set_ps(c111, c101, c110, c100),
@@ -810,6 +889,17 @@ mod tests {
     /// Each window's range from `row_ranges` is that of its voxels normalised one
     /// by one: NaN (as 0), infinities, signed zeros, increasing and decreasing
     /// windows, float and integer voxels.
+    #[test]
+    fn raw_bytes_are_unclamped_where_the_window_covers_both_ends() {
+        let n = |lo, hi| Normalize::new(lo, hi);
+        assert!(raw_bytes_unclamped(n(0.0, 255.0), [0, 255]));
+        assert!(raw_bytes_unclamped(n(255.0, 0.0), [0, 255]));
+        assert!(raw_bytes_unclamped(n(10.0, 240.0), [10, 240]));
+        assert!(!raw_bytes_unclamped(n(10.0, 240.0), [9, 240]));
+        assert!(!raw_bytes_unclamped(n(10.0, 240.0), [10, 241]));
+        assert!(!raw_bytes_unclamped(n(0.0, 254.0), [0, 255]));
+    }
+
     #[test]
     fn row_ranges_are_the_normalised_extremes() {
         fn check<T: Voxel>(values: &[T], norm: Normalize) {

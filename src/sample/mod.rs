@@ -23,8 +23,8 @@ pub use filter::{
     gradient_volume, gradient_volume_normalised, prefilter_cubic, prefilter_normalised,
 };
 pub use grid::{
-    bits_table, normalisation_table, pair_table, reads_pairs, CellCache, CellPosition, Gradients,
-    Grid, PAIR_TABLE_BYTES,
+    bits_table, normalisation_table, pair_table, raw_bytes_unclamped, reads_pairs, CellCache,
+    CellPosition, Gradients, Grid, PAIR_TABLE_BYTES,
 };
 pub use reconstruct::{BSpline, Cubic, Nearest, Sampler, Trilinear};
 

@@ -237,6 +237,24 @@ impl Voxels<'_, f32> {
     }
 }
 
+impl Voxels<'_, u8> {
+    /// The smallest and the largest voxel (`[255, 0]` for no voxels), read in
+    /// parallel: once per run for an 8-bit volume whose window does not cover
+    /// every byte value, to learn whether it covers the data
+    /// ([`Grid::with_raw_bytes`](crate::sample::Grid::with_raw_bytes)).
+    pub fn byte_range(&self) -> [u8; 2] {
+        use rayon::prelude::*;
+        self.bytes
+            .par_chunks(1 << 20)
+            .map(|chunk| {
+                chunk
+                    .iter()
+                    .fold([u8::MAX, 0], |[lo, hi], &b| [lo.min(b), hi.max(b)])
+            })
+            .reduce(|| [u8::MAX, 0], |a, b| [a[0].min(b[0]), a[1].max(b[1])])
+    }
+}
+
 /// A read-only view of voxels of type `T` in native byte order, x fastest: the
 /// storage the renderer samples. The bytes may sit at any address (a memory-mapped
 /// file's data starts wherever its header ends), so elements are read with
@@ -705,6 +723,17 @@ impl PartialEq for VolumeData {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn byte_range_spans_every_chunk() {
+        // several chunks, the extremes in different ones
+        let mut v = vec![100u8; 3 << 20];
+        assert_eq!(Voxels::from_slice(&v).byte_range(), [100, 100]);
+        v[5] = 7;
+        v[(2 << 20) + 3] = 201;
+        assert_eq!(Voxels::from_slice(&v).byte_range(), [7, 201]);
+        assert_eq!(Voxels::<u8>::from_slice(&[]).byte_range(), [255, 0]);
+    }
 
     #[test]
     fn unit_interval_check_takes_both_zeros_and_ends_and_refuses_the_rest() {

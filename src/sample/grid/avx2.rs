@@ -34,6 +34,10 @@ pub(super) enum Gather {
     /// the table of pairs ([`Grid::with_pairs`](super::Grid::with_pairs)): as
     /// [`Gather::Bits8`], with one table load per row of a cell rather than two.
     Bits8Pairs,
+    /// Unsigned 8-bit voxels interpolated as they are, the result normalised in f64
+    /// lanes ([`Grid::with_raw_bytes`](super::Grid::with_raw_bytes)): each row's
+    /// two bytes become two f32 lanes with integer operations, no table.
+    Bits8Raw,
     /// 16-bit voxels read as `u16` bits, normalised by the table.
     Bits16,
 }
@@ -167,6 +171,10 @@ impl<T: Voxel> Grid<'_, T> {
                     let c = each_row!(self.row_words::<ROW_PAIRS>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
+                Gather::Bits8Raw => {
+                    let c = each_row!(self.row_bytes, _mm256_add_epi64, base, rows);
+                    normalise(&self.norm, lerps(c, fx, fy, fz))
+                }
             };
             _mm_storeu_ps(out.as_mut_ptr().add(4 * g), sample);
         }
@@ -216,6 +224,29 @@ impl<T: Voxel> Grid<'_, T> {
             _mm256_cvtpd_ps(_mm256_min_pd(_mm256_max_pd(x, zero), one))
         };
         (norm(a), norm(b))
+    }
+
+    /// The 8-bit voxels at flat indices `at` and `at + 1` of each lane as floats,
+    /// not normalised ([`Gather::Bits8Raw`]).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn row_bytes(&self, at: __m256i) -> (__m128, __m128) {
+        let at: [i64; 4] = std::mem::transmute(at);
+        // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
+        // voxel; each lane reads the two bytes as one 16-bit word
+        let w = |k: usize| i32::from(self.byte_pair(at[k]));
+        bytes_to_floats(_mm_set_epi32(w(3), w(2), w(1), w(0)))
+    }
+
+    /// The two 8-bit voxels at flat index `at` and `at + 1` as one little-endian
+    /// 16-bit word.
+    ///
+    /// # Safety
+    /// Voxels `at` and `at + 1` are in the grid, whose voxels are 8-bit.
+    #[inline(always)]
+    pub(super) unsafe fn byte_pair(&self, at: i64) -> u16 {
+        let p = self.voxels.as_ptr().cast::<u8>().add(at as usize);
+        u16::from_le(p.cast::<u16>().read_unaligned())
     }
 
     /// The normalised 8- or 16-bit voxels (`BYTES` per voxel) at flat indices `at`
@@ -354,6 +385,43 @@ unsafe fn locate(a: &Axis, t: __m256d) -> (__m128i, __m128) {
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn interpolate(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m128) -> __m128 {
+    let v = lerps(c, fx, fy, fz);
+    // `max(0, v)` keeps v when both are zeros (so -0.0 stays) and when v is NaN,
+    // then `min(1, .)` likewise: f32::clamp's results
+    _mm_min_ps(_mm_set1_ps(1.0), _mm_max_ps(_mm_setzero_ps(), v))
+}
+
+/// The low bytes of each 32-bit lane (as [`Grid::byte_pair`] gives them: voxel
+/// `at` in bits 0-7, `at + 1` in bits 8-15) as two lanes of floats.
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) unsafe fn bytes_to_floats(w: __m128i) -> (__m128, __m128) {
+    let m = _mm_set1_epi32(0xff);
+    let a = _mm_and_si128(w, m);
+    let b = _mm_and_si128(_mm_srli_epi32::<8>(w), m);
+    (_mm_cvtepi32_ps(a), _mm_cvtepi32_ps(b))
+}
+
+/// Four lanes of interpolated bytes normalised as [`Normalize::apply`] does:
+/// `(v - lo) * scale` in f64, max with 0, min with 1.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn normalise(norm: &Normalize, v: __m128) -> __m128 {
+    let (l, s) = norm.lo_scale();
+    let x = _mm256_mul_pd(
+        _mm256_sub_pd(_mm256_cvtps_pd(v), _mm256_set1_pd(l)),
+        _mm256_set1_pd(s),
+    );
+    _mm256_cvtpd_ps(_mm256_min_pd(
+        _mm256_max_pd(x, _mm256_setzero_pd()),
+        _mm256_set1_pd(1.0),
+    ))
+}
+
+/// [`interpolate`] without the clamp.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn lerps(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m128) -> __m128 {
     let lerp = |a: __m128, b: __m128, t: __m128| _mm_add_ps(a, _mm_mul_ps(_mm_sub_ps(b, a), t));
     // written out: `array::map`'s closure calls are not always inlined
     let x = [
@@ -364,10 +432,7 @@ unsafe fn interpolate(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m1
     ];
     let y0 = lerp(x[0], x[1], fy);
     let y1 = lerp(x[2], x[3], fy);
-    let v = lerp(y0, y1, fz);
-    // `max(0, v)` keeps v when both are zeros (so -0.0 stays) and when v is NaN,
-    // then `min(1, .)` likewise: f32::clamp's results
-    _mm_min_ps(_mm_set1_ps(1.0), _mm_max_ps(_mm_setzero_ps(), v))
+    lerp(y0, y1, fz)
 }
 
 #[cfg(test)]
@@ -390,6 +455,8 @@ mod tests {
         Pairs,
         /// Both: signed 8-bit data through its table of pairs.
         SignedPairs,
+        /// Unsigned 8-bit voxels interpolated as they are ([`Grid::with_raw_bytes`]).
+        Raw,
     }
 
     /// Samples along random rays (inside, across and outside the grid, with NaN and
@@ -404,7 +471,14 @@ mod tests {
     ) {
         // calls of the AVX2 and of the AVX-512 path (0 where the machine lacks one)
         let mut paths = [0usize; 2];
-        for n in [[9, 8, 7], [2, 3, 2], [5, 1, 4], [3, 4, 1], [2, 2, 1]] {
+        for n in [
+            [9, 8, 7],
+            [2, 3, 2],
+            [5, 1, 4],
+            [3, 4, 1],
+            [2, 2, 1],
+            [3, 1, 1],
+        ] {
             let len = n[0] * n[1] * n[2];
             let v: Vec<T> = (0..len).map(&voxel).collect();
             let lut = if matches!(read, Read::Signed | Read::SignedPairs) {
@@ -423,12 +497,20 @@ mod tests {
                 g = g.signed_bits();
             }
             // the single samples the others are held to: through the normalisation
-            // table, even where `g` reads pairs (its single samples read them too)
-            let reference = g;
+            // table, even where `g` reads pairs (its single samples read them too);
+            // for raw bytes, the scalar path's (without SSE2)
+            let plain = g;
+            let reference = if read == Read::Raw {
+                g.with_raw_bytes()
+            } else {
+                g
+            };
             match read {
                 Read::Plain | Read::Signed => {}
                 Read::Bare => g = g.with_unit_voxels(),
                 Read::Pairs | Read::SignedPairs => g = g.with_pairs(&pairs),
+                // (the table of pairs is not read by a grid of raw bytes)
+                Read::Raw => g = g.with_pairs(&pairs).with_raw_bytes(),
             }
             if std::is_x86_feature_detected!("avx2") {
                 assert_eq!(g.gather, expect, "{n:?}");
@@ -477,7 +559,15 @@ mod tests {
                 }
                 for (k, &t) in ts.iter().enumerate() {
                     let p = [0, 1, 2].map(|a| o[a] + d[a] * t);
-                    let bits = reference.trilinear(p).to_bits();
+                    let bits = if read == Read::Raw {
+                        // and the interpolant of the normalised voxels, up to rounding
+                        // (the windows of raw bytes cover every voxel)
+                        let (raw, normalised) = (reference.trilinear_scalar(p), plain.trilinear(p));
+                        assert!((raw - normalised).abs() <= 4e-7, "{raw} {normalised}");
+                        raw.to_bits()
+                    } else {
+                        reference.trilinear(p).to_bits()
+                    };
                     assert_eq!(g.trilinear(p).to_bits(), bits, "single {n:?} {p:?}");
                     let paths = ["dispatch", "AVX2", "AVX-512 loads", "AVX-512 gathers"];
                     for (path, out) in paths.iter().zip(&outs) {
@@ -552,6 +642,55 @@ mod tests {
             along_is_one_at_a_time(voxel, norm, Some(Gather::Bits8), Read::Plain);
             along_is_one_at_a_time(voxel, norm, Some(Gather::Bits8Pairs), Read::Pairs);
         }
+    }
+
+    #[test]
+    fn uint8_samples_of_raw_bytes_are_the_single_samples() {
+        // the windows that cover every byte value: as given, wider, decreasing
+        for norm in [
+            Normalize::new(0.0, 255.0),
+            Normalize::new(-256.0, 510.0),
+            Normalize::new(255.0, 0.0),
+        ] {
+            let voxel = |i: usize| (i * 53 % 256) as u8;
+            along_is_one_at_a_time(voxel, norm, Some(Gather::Bits8Raw), Read::Raw);
+        }
+    }
+
+    #[test]
+    fn raw_bytes_at_voxels_are_the_normalised_voxels() {
+        let n = [4, 3, 2];
+        let v: Vec<u8> = (0..24).map(|i| (i * 97 % 256) as u8).collect();
+        for norm in [Normalize::new(0.0, 255.0), Normalize::new(255.0, -3.0)] {
+            let lut = normalisation_table::<u8>(norm);
+            let g = Grid::new(Voxels::from_slice(&v), n, norm, &lut);
+            let raw = g.with_raw_bytes();
+            for (i, _) in v.iter().enumerate() {
+                let p = [i % 4, i / 4 % 3, i / 12].map(|x| x as f64);
+                assert_eq!(raw.trilinear(p).to_bits(), g.at(i).to_bits(), "{p:?}");
+                assert_eq!(
+                    raw.trilinear_scalar(p).to_bits(),
+                    g.at(i).to_bits(),
+                    "{p:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn only_unsigned_bytes_are_read_raw() {
+        let v = [1u8, 2, 3, 4];
+        let norm = Normalize::new(0.0, 255.0);
+        let lut = bits_table(ScalarType::Int8, norm).expect("8-bit");
+        let signed = Grid::new(Voxels::from_slice(&v), [4, 1, 1], norm, &lut).signed_bits();
+        assert!(!signed.with_raw_bytes().raw_bytes);
+        let v = [1u16, 2, 3, 4];
+        let lut = normalisation_table::<u16>(norm);
+        assert!(
+            !Grid::new(Voxels::from_slice(&v), [4, 1, 1], norm, &lut)
+                .with_raw_bytes()
+                .raw_bytes
+        );
     }
 
     #[test]

@@ -11,6 +11,7 @@ use std::arch::x86_64::*;
 
 use super::avx2::{f32_pair, Gather, LaneConstants, ROW_BARE, ROW_GENERAL, ROW_PAIRS, ROW_UNIT};
 use super::Grid;
+use crate::sample::Normalize;
 use crate::volume::Voxel;
 
 /// Whether this machine runs the eight-lane path (AVX-512 Foundation, with AVX2 for
@@ -101,10 +102,29 @@ impl<T: Voxel> Grid<'_, T> {
                     let (a, b) = (x(lo), x(hi));
                     a > 0.0 && a < last && b > 0.0 && b < last
                 });
+            // raw bytes read by gathers: whether every lane's cell starts at flat
+            // index 2 or later, so that each row's gather may start two bytes
+            // before its two voxels. A lane's cell index on an axis does not
+            // decrease or does not increase with `t` (the clamps and the floor
+            // are monotone), so the axes' least indices at the ends bound every
+            // lane's
+            let from_two = self.row_gathers && between && c.kind == Gather::Bits8Raw && {
+                let least = |[o, d, last, top]: [f64; 4]| {
+                    let cell = |t: f64| {
+                        let x = o + d * t;
+                        let x = if x > 0.0 { x } else { 0.0 };
+                        let x = if x < last { x } else { last };
+                        (if x < top { x } else { top }) as usize
+                    };
+                    cell(lo).min(cell(hi))
+                };
+                let [i, j, k] = c.axes.map(least);
+                i + self.sx * j + self.sxy * k >= 2
+            };
             if inside {
-                self.groups_avx512::<false>(&c, &ts[..rest], &mut out[..rest]);
+                self.groups_avx512::<false>(&c, &ts[..rest], &mut out[..rest], from_two);
             } else {
-                self.groups_avx512::<true>(&c, &ts[..rest], &mut out[..rest]);
+                self.groups_avx512::<true>(&c, &ts[..rest], &mut out[..rest], from_two);
             }
         }
         self.trilinear_avx2(o, d, &ts[rest..], &mut out[rest..]);
@@ -113,7 +133,8 @@ impl<T: Voxel> Grid<'_, T> {
     /// [`Grid::trilinear_avx512`] of whole groups of eight (`ts.len()` a multiple of
     /// 8), the positions clamped to the grid unless `CLAMP` is false (the caller
     /// has found every position inside the grid's cells, where the clamps change
-    /// nothing).
+    /// nothing); `from_two`: every position's cell starts at flat index 2 or later
+    /// (the caller's, for [`Grid::rows_bytes_x8`]).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
     unsafe fn groups_avx512<const CLAMP: bool>(
@@ -121,6 +142,7 @@ impl<T: Voxel> Grid<'_, T> {
         c: &LaneConstants,
         ts: &[f64],
         out: &mut [f32],
+        from_two: bool,
     ) {
         debug_assert!(ts.len().is_multiple_of(8) && ts.len() == out.len());
         let kind = c.kind;
@@ -163,6 +185,10 @@ impl<T: Voxel> Grid<'_, T> {
                 Gather::Bits8Pairs => {
                     let corners = self.rows_words_x8::<ROW_PAIRS>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
+                }
+                Gather::Bits8Raw => {
+                    let corners = self.rows_bytes_x8(base, c.rows, from_two);
+                    normalise(&self.norm, lerps(corners, fx, fy, fz))
                 }
             };
             _mm256_storeu_ps(out.as_mut_ptr().add(at), sample);
@@ -255,6 +281,54 @@ impl<T: Voxel> Grid<'_, T> {
         (norm(a), norm(b))
     }
 
+    /// The 8-bit voxels of the four rows of each of eight lanes' cells as floats,
+    /// not normalised ([`Gather::Bits8Raw`]): row `r` of the lane whose cell starts
+    /// at flat index `base` holds voxels `base + rows[r]` and the one after it.
+    /// Where gathers pay ([`gathers_pay`]) and every cell starts at flat index 2
+    /// or later (`from_two`: all but the rays that pass the first two voxels'
+    /// cells), a row is one gather of the four bytes that end with its two, so
+    /// that no lane reads past the data's end; otherwise each lane's two bytes
+    /// are one scalar load.
+    #[target_feature(enable = "avx2,avx512f")]
+    #[inline]
+    unsafe fn rows_bytes_x8(
+        &self,
+        base: __m512i,
+        rows: [i64; 4],
+        from_two: bool,
+    ) -> [(__m256, __m256); 4] {
+        let data = self.voxels.as_ptr().cast::<u8>();
+        if self.row_gathers && from_two {
+            // SAFETY (the caller's): every `at` is a cell's row start, at least 2,
+            // and `at + 1` is a voxel: bytes `at - 2 ..= at + 1` are in the data
+            let row = |r: usize| {
+                let start = _mm512_add_epi64(base, _mm512_set1_epi64(rows[r] - 2));
+                let words = _mm512_i64gather_epi32::<1>(start, data.cast());
+                // voxel `at` in bits 16-23, `at + 1` in bits 24-31
+                let a = _mm256_and_si256(_mm256_srli_epi32::<16>(words), _mm256_set1_epi32(0xff));
+                let b = _mm256_srli_epi32::<24>(words);
+                (_mm256_cvtepi32_ps(a), _mm256_cvtepi32_ps(b))
+            };
+            return [row(0), row(1), row(2), row(3)];
+        }
+        let base: [i64; 8] = std::mem::transmute(base);
+        // SAFETY (the caller's): each lane's two bytes are voxels
+        let row = |r: usize| {
+            let w = |k: usize| i32::from(self.byte_pair(base[k] + rows[r]));
+            bytes_to_floats(_mm256_set_epi32(
+                w(7),
+                w(6),
+                w(5),
+                w(4),
+                w(3),
+                w(2),
+                w(1),
+                w(0),
+            ))
+        };
+        [row(0), row(1), row(2), row(3)]
+    }
+
     /// The normalised 8- or 16-bit voxels (`BYTES` per voxel) at flat indices `at`
     /// and `at + 1` of each of eight lanes, through the normalisation table.
     #[target_feature(enable = "avx2,avx512f")]
@@ -292,6 +366,40 @@ unsafe fn locate<const CLAMP: bool>(a: &Axis, t: __m512d) -> (__m256i, __m256) {
 #[target_feature(enable = "avx2,avx512f")]
 #[inline]
 unsafe fn interpolate(c: [(__m256, __m256); 4], fx: __m256, fy: __m256, fz: __m256) -> __m256 {
+    let v = lerps(c, fx, fy, fz);
+    _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), v))
+}
+
+/// The low bytes of each 32-bit lane (voxel `at` in bits 0-7, `at + 1` in bits
+/// 8-15) as two lanes of floats, as `avx2.rs`'s `bytes_to_floats`.
+#[target_feature(enable = "avx2,avx512f")]
+#[inline]
+unsafe fn bytes_to_floats(w: __m256i) -> (__m256, __m256) {
+    let m = _mm256_set1_epi32(0xff);
+    let a = _mm256_and_si256(w, m);
+    let b = _mm256_and_si256(_mm256_srli_epi32::<8>(w), m);
+    (_mm256_cvtepi32_ps(a), _mm256_cvtepi32_ps(b))
+}
+
+/// Eight lanes of interpolated bytes normalised as `avx2.rs`'s `normalise`.
+#[target_feature(enable = "avx2,avx512f")]
+#[inline]
+unsafe fn normalise(norm: &Normalize, v: __m256) -> __m256 {
+    let (l, s) = norm.lo_scale();
+    let x = _mm512_mul_pd(
+        _mm512_sub_pd(_mm512_cvtps_pd(v), _mm512_set1_pd(l)),
+        _mm512_set1_pd(s),
+    );
+    _mm512_cvtpd_ps(_mm512_min_pd(
+        _mm512_max_pd(x, _mm512_setzero_pd()),
+        _mm512_set1_pd(1.0),
+    ))
+}
+
+/// [`interpolate`] without the clamp.
+#[target_feature(enable = "avx2,avx512f")]
+#[inline]
+unsafe fn lerps(c: [(__m256, __m256); 4], fx: __m256, fy: __m256, fz: __m256) -> __m256 {
     let lerp =
         |a: __m256, b: __m256, t: __m256| _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), t));
     // written out: `array::map`'s closure calls are not always inlined
@@ -303,6 +411,5 @@ unsafe fn interpolate(c: [(__m256, __m256); 4], fx: __m256, fy: __m256, fz: __m2
     ];
     let y0 = lerp(x[0], x[1], fy);
     let y1 = lerp(x[2], x[3], fy);
-    let v = lerp(y0, y1, fz);
-    _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), v))
+    lerp(y0, y1, fz)
 }
