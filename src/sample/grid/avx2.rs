@@ -334,7 +334,9 @@ impl<T: Voxel> Grid<'_, T> {
 /// MIP frames 1.06x slower; on the Intel host of 2026-12-05, whose gathers are
 /// not microcoded either (an eight-lane gather about half the time of eight
 /// scalar loads put into a vector), gathering the 8-bit composite's voxel pairs
-/// was no faster (0.97x-1.08x, nineteenth round).
+/// was no faster (0.97x-1.08x, nineteenth round), but gathering float32 rows in
+/// the eight-lane path was (0.83-1.01x the time, twentieth round), so that path
+/// gathers them on such processors (`avx512::gathers_pay`).
 ///
 /// # Safety
 /// Voxels `at` and `at + 1` are inside `data`'s allocation.
