@@ -133,8 +133,8 @@ impl<T: Voxel> Grid<'_, T> {
     /// [`Grid::trilinear_avx512`] of whole groups of eight (`ts.len()` a multiple of
     /// 8), the positions clamped to the grid unless `CLAMP` is false (the caller
     /// has found every position inside the grid's cells, where the clamps change
-    /// nothing); `from_two`: every position's cell starts at flat index 2 or later
-    /// (the caller's, for [`Grid::rows_bytes_x8`]).
+    /// nothing); `from_two`: every position's cell starts at flat index 2 or later,
+    /// and gathers pay (the caller's, for [`Grid::rows_bytes_gathered`]).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
     unsafe fn groups_avx512<const CLAMP: bool>(
@@ -186,8 +186,12 @@ impl<T: Voxel> Grid<'_, T> {
                     let corners = self.rows_words_x8::<ROW_PAIRS>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
+                Gather::Bits8Raw if from_two => {
+                    let corners = self.rows_bytes_gathered(base, c.rows);
+                    normalise(&self.norm, lerps(corners, fx, fy, fz))
+                }
                 Gather::Bits8Raw => {
-                    let corners = self.rows_bytes_x8(base, c.rows, from_two);
+                    let corners = self.rows_bytes_x8(base, c.rows);
                     normalise(&self.norm, lerps(corners, fx, fy, fz))
                 }
             };
@@ -283,34 +287,11 @@ impl<T: Voxel> Grid<'_, T> {
 
     /// The 8-bit voxels of the four rows of each of eight lanes' cells as floats,
     /// not normalised ([`Gather::Bits8Raw`]): row `r` of the lane whose cell starts
-    /// at flat index `base` holds voxels `base + rows[r]` and the one after it.
-    /// Where gathers pay ([`gathers_pay`]) and every cell starts at flat index 2
-    /// or later (`from_two`: all but the rays that pass the first two voxels'
-    /// cells), a row is one gather of the four bytes that end with its two, so
-    /// that no lane reads past the data's end; otherwise each lane's two bytes
-    /// are one scalar load.
+    /// at flat index `base` holds voxels `base + rows[r]` and the one after it,
+    /// each lane's two bytes read with one scalar load.
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
-    unsafe fn rows_bytes_x8(
-        &self,
-        base: __m512i,
-        rows: [i64; 4],
-        from_two: bool,
-    ) -> [(__m256, __m256); 4] {
-        let data = self.voxels.as_ptr().cast::<u8>();
-        if self.row_gathers && from_two {
-            // SAFETY (the caller's): every `at` is a cell's row start, at least 2,
-            // and `at + 1` is a voxel: bytes `at - 2 ..= at + 1` are in the data
-            let row = |r: usize| {
-                let start = _mm512_add_epi64(base, _mm512_set1_epi64(rows[r] - 2));
-                let words = _mm512_i64gather_epi32::<1>(start, data.cast());
-                // voxel `at` in bits 16-23, `at + 1` in bits 24-31
-                let a = _mm256_and_si256(_mm256_srli_epi32::<16>(words), _mm256_set1_epi32(0xff));
-                let b = _mm256_srli_epi32::<24>(words);
-                (_mm256_cvtepi32_ps(a), _mm256_cvtepi32_ps(b))
-            };
-            return [row(0), row(1), row(2), row(3)];
-        }
+    unsafe fn rows_bytes_x8(&self, base: __m512i, rows: [i64; 4]) -> [(__m256, __m256); 4] {
         let base: [i64; 8] = std::mem::transmute(base);
         // SAFETY (the caller's): each lane's two bytes are voxels
         let row = |r: usize| {
@@ -325,6 +306,28 @@ impl<T: Voxel> Grid<'_, T> {
                 w(1),
                 w(0),
             ))
+        };
+        [row(0), row(1), row(2), row(3)]
+    }
+
+    /// [`Grid::rows_bytes_x8`] with a gather per row, where gathers pay
+    /// ([`gathers_pay`]) and every cell starts at flat index 2 or later (the
+    /// caller's `from_two`: all but the rays that pass the first two voxels'
+    /// cells): the gather reads the four bytes that end with the row's two, so
+    /// that no lane reads past the data's end.
+    #[target_feature(enable = "avx2,avx512f")]
+    #[inline]
+    unsafe fn rows_bytes_gathered(&self, base: __m512i, rows: [i64; 4]) -> [(__m256, __m256); 4] {
+        let data = self.voxels.as_ptr().cast::<u8>();
+        // SAFETY (the caller's): every `at` is a cell's row start, at least 2, and
+        // `at + 1` is a voxel: bytes `at - 2 ..= at + 1` are in the data
+        let row = |r: usize| {
+            let start = _mm512_add_epi64(base, _mm512_set1_epi64(rows[r] - 2));
+            let words = _mm512_i64gather_epi32::<1>(start, data.cast());
+            // voxel `at` in bits 16-23, `at + 1` in bits 24-31
+            let a = _mm256_and_si256(_mm256_srli_epi32::<16>(words), _mm256_set1_epi32(0xff));
+            let b = _mm256_srli_epi32::<24>(words);
+            (_mm256_cvtepi32_ps(a), _mm256_cvtepi32_ps(b))
         };
         [row(0), row(1), row(2), row(3)]
     }
