@@ -397,7 +397,7 @@ unsafe fn interpolate(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m1
 /// `at` in bits 0-7, `at + 1` in bits 8-15) as two lanes of floats.
 #[target_feature(enable = "avx2")]
 #[inline]
-pub(super) unsafe fn bytes_to_floats(w: __m128i) -> (__m128, __m128) {
+unsafe fn bytes_to_floats(w: __m128i) -> (__m128, __m128) {
     let m = _mm_set1_epi32(0xff);
     let a = _mm_and_si128(w, m);
     let b = _mm_and_si128(_mm_srli_epi32::<8>(w), m);
