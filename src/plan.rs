@@ -288,7 +288,7 @@ impl Plan {
         let mut grids: Vec<GridSource> = passes.iter().filter_map(|p| p.needs().grid).collect();
         grids.sort();
         grids.dedup();
-        let pair_bytes = if passes.iter().any(|p| p.needs().voxel_pairs) {
+        let pair_bytes = if passes.iter().any(|p| p.needs().voxel_pairs()) {
             PAIR_TABLE_BYTES
         } else {
             0

@@ -70,15 +70,21 @@ pub struct Needs {
     pub coefficients: bool,
     /// A macrocell grid for empty-space skipping.
     pub grid: Option<GridSource>,
+    /// Trilinear samples of 8-bit voxels: unsigned ones are interpolated as the
+    /// bytes they are where the window covers every voxel value
+    /// ([`Grid::with_raw_bytes`]), the others read through a table of pairs where
+    /// the machine's vector paths do so ([`Needs::voxel_pairs`]).
+    pub trilinear_bytes: bool,
+}
+
+impl Needs {
     /// The table of normalised pairs of 8-bit voxels (512 KiB), which the vector
     /// paths of trilinear passes over 8-bit data read on machines that have them
     /// ([`reads_pairs`]); not built for unsigned voxels that the window covers,
-    /// which are interpolated as they are ([`Needs::raw_bytes`]).
-    pub voxel_pairs: bool,
-    /// Trilinear samples of 8-bit voxels: unsigned ones are interpolated as the
-    /// bytes they are where the window covers every voxel value
-    /// ([`Grid::with_raw_bytes`]).
-    pub raw_bytes: bool,
+    /// which are interpolated as they are.
+    pub fn voxel_pairs(&self) -> bool {
+        self.trilinear_bytes && reads_pairs()
+    }
 }
 
 /// What a pass's films hold, for display.
@@ -303,8 +309,7 @@ impl RenderPass {
                 gradient_volume,
                 coefficients: interpolation == Interpolation::Cubic,
                 grid,
-                voxel_pairs: bytes && reads_pairs(),
-                raw_bytes: bytes,
+                trilinear_bytes: bytes,
             },
             scalar_type,
             clips: Vec::new(),
@@ -441,7 +446,7 @@ impl RenderPass {
         if self.needs.coefficients {
             needs.push("prefiltered cubic coefficients".into());
         }
-        if self.needs.voxel_pairs {
+        if self.needs.voxel_pairs() {
             needs.push(format!(
                 "8-bit voxels read two at a time through a table of normalised pairs ({}; \
                  none for unsigned voxels the window covers: interpolated as they are)",
@@ -850,12 +855,12 @@ fn build_typed<'v, T: Voxel>(
         })
         .collect();
     let raw_bytes = data.scalar_type() == ScalarType::Uint8
-        && needs.iter().any(|n| n.raw_bytes)
+        && needs.iter().any(|n| n.trilinear_bytes)
         && (raw_bytes_unclamped(norm, [0, u8::MAX])
             || data
                 .voxels::<u8>()
                 .is_some_and(|v| raw_bytes_unclamped(norm, v.byte_range())));
-    let pairs = if needs.iter().any(|n| n.voxel_pairs) && !raw_bytes {
+    let pairs = if needs.iter().any(Needs::voxel_pairs) && !raw_bytes {
         pair_table(&lut)
     } else {
         Vec::new()

@@ -304,6 +304,9 @@ impl<'a, T: Voxel> Grid<'a, T> {
             raw_bytes: true,
             #[cfg(target_arch = "x86_64")]
             gather,
+            // (the bytes are read as they are, not through the table of pairs)
+            #[cfg(target_arch = "x86_64")]
+            pairs: &[],
             ..self
         }
     }
@@ -518,8 +521,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
             let b = _mm_shuffle_ps(lo, hi, 0b11_01_11_01);
             return (a, b);
         }
-        if T::TYPE == crate::volume::ScalarType::Uint8 && !self.pairs.is_empty() && !self.raw_bytes
-        {
+        if T::TYPE == crate::volume::ScalarType::Uint8 && !self.pairs.is_empty() {
             let [_, dy, dz] = self.step;
             // SAFETY: as above, each pair (i, i + 1) is inside the voxels (the grid
             // has a table of pairs only where x has two voxels or more, so `dx` is 1);
