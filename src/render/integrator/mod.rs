@@ -177,7 +177,7 @@ pub trait Consumer {
 /// [`Consumer::take_batch`], and the way of a consumer's own for the batches it
 /// does not handle at once).
 #[inline(always)]
-fn take_each<C: Consumer + ?Sized>(
+pub(super) fn take_each<C: Consumer + ?Sized>(
     consumer: &mut C,
     from: usize,
     ts: &[f64],
