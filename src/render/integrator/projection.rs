@@ -285,7 +285,8 @@ impl Consumer for Extremum {
 }
 
 /// The extremum of `start` and `values` by `better` (`better(a, b)`: `a` replaces
-/// `b`), in eight lanes, each starting at `start`, then across them in order.
+/// `b`), in eight lanes, each starting at `start`, then across them; of values that
+/// compare equal, any one.
 #[inline(always)]
 fn lane_extremum(values: &[f32], start: f32, better: impl Fn(f32, f32) -> bool) -> f32 {
     let mut lanes = [start; 8];
@@ -299,9 +300,16 @@ fn lane_extremum(values: &[f32], start: f32, better: impl Fn(f32, f32) -> bool) 
     for (l, &v) in lanes.iter_mut().zip(tail) {
         *l = if better(v, *l) { v } else { *l };
     }
-    lanes
-        .into_iter()
-        .fold(start, |b, v| if better(v, b) { v } else { b })
+    // halves against halves: a value that wins compares equal to the extremum
+    let mut width = lanes.len();
+    while width > 1 {
+        width /= 2;
+        for l in 0..width {
+            let v = lanes[l + width];
+            lanes[l] = if better(v, lanes[l]) { v } else { lanes[l] };
+        }
+    }
+    lanes[0]
 }
 
 fn extremum<F: Field>(
