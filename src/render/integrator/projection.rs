@@ -266,8 +266,9 @@ impl Consumer for Extremum {
     /// The batch's extremum in eight lanes (one vector instruction for eight
     /// samples instead of a chain of one per sample), then the lanes'. The result is
     /// the bits of [`Consumer::take`] in order: values that compare equal have the
-    /// same bits, but for +0 and -0, so a batch whose result compares equal to zero
-    /// goes again in order.
+    /// same bits, but for +0 and -0, so a batch that brings the extremum to zero goes
+    /// again in order. (One that starts at zero and ends there leaves every lane at
+    /// its start: nothing beats the extremum.)
     #[inline(always)]
     fn take_batch(&mut self, from: usize, ts: &[f64], values: &[f32]) -> ControlFlow<usize> {
         let before = self.best;
@@ -276,7 +277,7 @@ impl Consumer for Extremum {
         } else {
             lane_extremum(values, before, |a, b| a < b)
         };
-        if lanes == 0.0 {
+        if lanes == 0.0 && before != 0.0 {
             return take_each(self, from, ts, values);
         }
         self.best = lanes;
