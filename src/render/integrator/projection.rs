@@ -473,9 +473,10 @@ fn brightest_first<F: Field, C: Ranked>(
 /// Samples that [`brightest_first`] collects from the cells it cannot pass over
 /// before it hands them to the sampler in one call, updating the running extremum
 /// that decides which cells come next. A cell of the peer benchmark's MIP holds 16
-/// samples, and a call costs about as much as two or three of them: one call per cell took
-/// 1.09-1.12x the time of one per 32 samples, which took 0.7 % more samples (one per
-/// 64: 3.7 % more samples, no faster); `bench/peers/README.md`, twenty-first round.
+/// samples, and a call costs about as much as two or three of them: one call per
+/// cell took 1.09-1.12x the time of one per 32 samples, which took 0.7 % more
+/// samples (one per 64: 3.7 % more samples, no faster); `bench/peers/README.md`,
+/// twenty-first round.
 const FLUSH_AT: usize = 32;
 
 /// Samples of several runs of a march, handed to a ranked consumer (which never
