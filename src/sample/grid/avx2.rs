@@ -215,15 +215,8 @@ impl<T: Voxel> Grid<'_, T> {
             let clamp = |v: __m128| _mm_min_ps(_mm_max_ps(v, zero), one);
             return (clamp(a), clamp(b));
         }
-        let (l, s) = self.norm.lo_scale();
-        let (l, s) = (_mm256_set1_pd(l), _mm256_set1_pd(s));
-        let (zero, one) = (_mm256_setzero_pd(), _mm256_set1_pd(1.0));
-        // as `trilinear_sse2`: (v - lo) * scale, max with 0 (NaN -> 0), min with 1
-        let norm = |v: __m128| {
-            let x = _mm256_mul_pd(_mm256_sub_pd(_mm256_cvtps_pd(v), l), s);
-            _mm256_cvtpd_ps(_mm256_min_pd(_mm256_max_pd(x, zero), one))
-        };
-        (norm(a), norm(b))
+        // as `trilinear_sse2`
+        (normalise(&self.norm, a), normalise(&self.norm, b))
     }
 
     /// The 8-bit voxels at flat indices `at` and `at + 1` of each lane as floats,
@@ -404,8 +397,8 @@ unsafe fn bytes_to_floats(w: __m128i) -> (__m128, __m128) {
     (_mm_cvtepi32_ps(a), _mm_cvtepi32_ps(b))
 }
 
-/// Four lanes of interpolated bytes normalised as [`Normalize::apply`] does:
-/// `(v - lo) * scale` in f64, max with 0, min with 1.
+/// Four lanes normalised as [`Normalize::apply`] does: `(v - lo) * scale` in f64,
+/// max with 0 (NaN -> 0), min with 1 (float32 voxels, or interpolated bytes).
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn normalise(norm: &Normalize, v: __m128) -> __m128 {

@@ -274,15 +274,8 @@ impl<T: Voxel> Grid<'_, T> {
             let clamp = |v: __m256| _mm256_min_ps(_mm256_max_ps(v, zero), one);
             return (clamp(a), clamp(b));
         }
-        let (l, s) = self.norm.lo_scale();
-        let (l, s) = (_mm512_set1_pd(l), _mm512_set1_pd(s));
-        let (zero, one) = (_mm512_setzero_pd(), _mm512_set1_pd(1.0));
-        // as `trilinear_sse2`: (v - lo) * scale, max with 0 (NaN -> 0), min with 1
-        let norm = |v: __m256| {
-            let x = _mm512_mul_pd(_mm512_sub_pd(_mm512_cvtps_pd(v), l), s);
-            _mm512_cvtpd_ps(_mm512_min_pd(_mm512_max_pd(x, zero), one))
-        };
-        (norm(a), norm(b))
+        // as `trilinear_sse2`
+        (normalise(&self.norm, a), normalise(&self.norm, b))
     }
 
     /// The 8-bit voxels of the four rows of each of eight lanes' cells as floats,
@@ -384,7 +377,8 @@ unsafe fn bytes_to_floats(w: __m256i) -> (__m256, __m256) {
     (_mm256_cvtepi32_ps(a), _mm256_cvtepi32_ps(b))
 }
 
-/// Eight lanes of interpolated bytes normalised as `avx2.rs`'s `normalise`.
+/// Eight lanes normalised as `avx2.rs`'s `normalise` (float32 voxels, or
+/// interpolated bytes).
 #[target_feature(enable = "avx2,avx512f")]
 #[inline]
 unsafe fn normalise(norm: &Normalize, v: __m256) -> __m256 {
