@@ -79,6 +79,8 @@ pub(super) fn render_passes(
         &volume.data,
         header.sizes,
         norm,
+        // without a window, the run's is the data's range (`value_window`)
+        scene.volume.window.is_none(),
         index_from_world,
         &plan.passes,
     );

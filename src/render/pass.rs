@@ -723,17 +723,28 @@ pub struct Resources<'v> {
 }
 
 impl<'v> Resources<'v> {
-    /// Builds what `passes` need over `data` (`sizes` voxels, normalised by `norm`).
+    /// Builds what `passes` need over `data` (`sizes` voxels, normalised by `norm`;
+    /// `norm_covers_data`: `norm` is the window of the data's own range, as in a
+    /// scene without a window, so that it clamps no voxel).
     pub fn build<'p>(
         data: &'v VolumeData,
         sizes: [usize; 3],
         norm: Normalize,
+        norm_covers_data: bool,
         index_from_world: DMat3,
         passes: impl IntoIterator<Item = &'p RenderPass>,
     ) -> Resources<'v> {
         let needs: Vec<Needs> = passes.into_iter().map(|p| p.needs).collect();
         let ty = data.scalar_type();
-        let lut = bits_table(ty, norm).unwrap_or_default();
+        // the data's range is read only where neither the window's nor the type's
+        // range answers
+        let raw_bytes = ty == ScalarType::Uint8
+            && needs.iter().any(|n| n.trilinear_bytes)
+            && (norm_covers_data
+                || raw_bytes_unclamped(norm, [0, u8::MAX])
+                || data
+                    .voxels::<u8>()
+                    .is_some_and(|v| raw_bytes_unclamped(norm, v.byte_range())));
         macro_rules! build {
             ($t:ty, $read:ty) => {
                 build_typed::<$read>(
@@ -741,10 +752,10 @@ impl<'v> Resources<'v> {
                     data.voxels::<$t>()
                         .expect("dispatched on the data's own type")
                         .reinterpret::<$read>(),
-                    lut,
                     sizes,
                     norm,
                     &needs,
+                    raw_bytes,
                     index_from_world,
                 )
             };
@@ -795,16 +806,18 @@ impl<'v> Resources<'v> {
 }
 
 /// The precomputations over `voxels` (the volume's data, read as `T`: its own type,
-/// or the unsigned bits of 8- and 16-bit data, which `lut` normalises).
+/// or the unsigned bits of 8- and 16-bit data, which the table of `norm`,
+/// [`bits_table`], normalises).
 fn build_typed<'v, T: Voxel>(
     data: &'v VolumeData,
     voxels: crate::volume::Voxels<'v, T>,
-    lut: Vec<f32>,
     sizes: [usize; 3],
     norm: Normalize,
     needs: &[Needs],
+    raw_bytes: bool,
     index_from_world: DMat3,
 ) -> Resources<'v> {
+    let lut = bits_table(data.scalar_type(), norm).unwrap_or_default();
     let grid = Grid::new(voxels, sizes, norm, &lut);
     let grid = match data.scalar_type() {
         ScalarType::Int8 | ScalarType::Int16 => grid.signed_bits(),
@@ -854,12 +867,6 @@ fn build_typed<'v, T: Voxel>(
             (s, g)
         })
         .collect();
-    let raw_bytes = data.scalar_type() == ScalarType::Uint8
-        && needs.iter().any(|n| n.trilinear_bytes)
-        && (raw_bytes_unclamped(norm, [0, u8::MAX])
-            || data
-                .voxels::<u8>()
-                .is_some_and(|v| raw_bytes_unclamped(norm, v.byte_range())));
     let pairs = if needs.iter().any(Needs::voxel_pairs) && !raw_bytes {
         pair_table(&lut)
     } else {

@@ -239,7 +239,7 @@ impl Voxels<'_, f32> {
 
 impl Voxels<'_, u8> {
     /// The smallest and the largest voxel (`[255, 0]` for no voxels), read in
-    /// parallel: once per run for an 8-bit volume whose window does not cover
+    /// parallel: once per run for an 8-bit volume whose own window does not cover
     /// every byte value, to learn whether it covers the data
     /// ([`Grid::with_raw_bytes`](crate::sample::Grid::with_raw_bytes)).
     pub fn byte_range(&self) -> [u8; 2] {
