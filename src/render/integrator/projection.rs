@@ -461,10 +461,20 @@ fn brightest_first<F: Field, C: Ranked>(
     };
     sample(e, &mut runs, best_span, false);
     runs.flush(field, &ray.index, e);
-    for s in 0..count {
-        if s != best_span {
-            sample(e, &mut runs, s, s < best_span);
+    // most cells are passed over: that test here, without a call (`sample` tests
+    // again, after the flush it may owe first)
+    for (s, &(_, cell)) in spans.iter().enumerate() {
+        if s == best_span {
+            continue;
         }
+        let earlier = s < best_span;
+        if runs.len < FLUSH_AT {
+            let range = grid.range(cell as usize);
+            if (earlier && e.skippable_earlier(range)) || (!earlier && e.skippable(0, range)) {
+                continue;
+            }
+        }
+        sample(e, &mut runs, s, earlier);
     }
     runs.flush(field, &ray.index, e);
     Some(taken)
