@@ -201,15 +201,14 @@ impl Integrand for CuedMip {
     }
 }
 
-/// The running extremum of the samples.
-struct Extremum {
+/// The running extremum of the samples: the maximum when `MAX`, else the minimum.
+struct Extremum<const MAX: bool> {
     best: f32,
-    max: bool,
 }
 
-impl Ranked for Extremum {
+impl<const MAX: bool> Ranked for Extremum<MAX> {
     fn rank(&self, range: [f32; 2]) -> f32 {
-        if self.max {
+        if MAX {
             range[1]
         } else {
             -range[0]
@@ -220,7 +219,7 @@ impl Ranked for Extremum {
     /// only zeros, and the maximum of zeros is the first (a tie keeps the earlier
     /// sample, +0 or -0).
     fn first_settles(&self, best: f32) -> bool {
-        self.max && best <= 0.0
+        MAX && best <= 0.0
     }
 }
 
@@ -231,10 +230,10 @@ fn first_sample<F: Field, C: Consumer>(field: &F, ray: &PixelRay, march: &March,
     first as u64
 }
 
-impl Consumer for Extremum {
+impl<const MAX: bool> Consumer for Extremum<MAX> {
     #[inline(always)]
     fn skippable(&self, _cell: usize, range: [f32; 2]) -> bool {
-        if self.max {
+        if MAX {
             range[1] <= self.best
         } else {
             range[0] >= self.best
@@ -249,7 +248,7 @@ impl Consumer for Extremum {
     #[inline(always)]
     fn take(&mut self, _i: usize, _t: f64, f: f32) -> ControlFlow<()> {
         // samples are never NaN: plain comparisons (one instruction each)
-        self.best = if self.max {
+        self.best = if MAX {
             if f > self.best {
                 f
             } else {
@@ -272,7 +271,7 @@ impl Consumer for Extremum {
     #[inline(always)]
     fn take_batch(&mut self, from: usize, ts: &[f64], values: &[f32]) -> ControlFlow<usize> {
         let before = self.best;
-        let lanes = if self.max {
+        let lanes = if MAX {
             lane_extremum(values, before, |a, b| a > b)
         } else {
             lane_extremum(values, before, |a, b| a < b)
@@ -313,24 +312,22 @@ fn lane_extremum(values: &[f32], start: f32, better: impl Fn(f32, f32) -> bool) 
     lanes[0]
 }
 
-fn extremum<F: Field>(
+fn extremum<F: Field, const MAX: bool>(
     field: &F,
     ray: &PixelRay,
     march: &March,
     grid: Option<&MacroGrid>,
-    max: bool,
 ) -> ([f32; 4], Counts) {
-    let mut e = Extremum {
-        best: if max {
+    let mut e = Extremum::<MAX> {
+        best: if MAX {
             f32::NEG_INFINITY
         } else {
             f32::INFINITY
         },
-        max,
     };
     let nominal = march.len() as u64;
     let [w0, w1] = ray.walk;
-    let taken = if max && grid.is_some() && w0 > w1 {
+    let taken = if MAX && grid.is_some() && w0 > w1 {
         // the ray meets only cells of zeros (`Mip::window_passes`)
         first_sample(field, ray, march, &mut e)
     } else {
@@ -555,7 +552,7 @@ impl Integrand for Mip {
         march: &March,
         grid: Option<&MacroGrid>,
     ) -> ([f32; 4], Counts) {
-        extremum(field, ray, march, grid, true)
+        extremum::<F, true>(field, ray, march, grid)
     }
 }
 
@@ -572,7 +569,7 @@ impl Integrand for Minip {
         march: &March,
         grid: Option<&MacroGrid>,
     ) -> ([f32; 4], Counts) {
-        extremum(field, ray, march, grid, false)
+        extremum::<F, false>(field, ray, march, grid)
     }
 }
 
@@ -680,7 +677,7 @@ impl Integrand for Lmip {
         match c.climbing {
             Some(v) => ([v, 0.0, 0.0, 0.0], Counts { taken, nominal }),
             None => {
-                let (v, more) = extremum(field, ray, march, grid, true);
+                let (v, more) = extremum::<F, true>(field, ray, march, grid);
                 let counts = Counts {
                     taken: taken + more.taken,
                     nominal,
@@ -700,6 +697,19 @@ mod tests {
 
     fn run(i: impl Integrand, v: &'static [f32]) -> f32 {
         trace(&i, &Line(v), &along_x((v.len() - 1) as f64), 1.0, 0.0).0[0]
+    }
+
+    /// `Extremum::take_batch` from `start` against `take` in order: the same bits.
+    fn same_bits<const MAX: bool>(start: f32, ts: &[f64], values: &[f32]) {
+        let mut batch = Extremum::<MAX> { best: start };
+        let mut each = Extremum::<MAX> { best: start };
+        assert!(batch.take_batch(7, ts, values).is_continue());
+        assert!(take_each(&mut each, 7, ts, values).is_continue());
+        assert_eq!(
+            batch.best.to_bits(),
+            each.best.to_bits(),
+            "max {MAX}, start {start}, values {values:?}"
+        );
     }
 
     /// `Extremum::take_batch` (eight lanes) gives the bits of `take` in order, for
@@ -724,18 +734,9 @@ mod tests {
                     _ => -((next() % 1000) as f32) / 999.0,
                 })
                 .collect();
-            for max in [true, false] {
-                for start in [f32::NEG_INFINITY, f32::INFINITY, 0.0, -0.0, 0.5] {
-                    let mut batch = Extremum { best: start, max };
-                    let mut each = Extremum { best: start, max };
-                    assert!(batch.take_batch(7, &ts[..n], &values).is_continue());
-                    assert!(take_each(&mut each, 7, &ts[..n], &values).is_continue());
-                    assert_eq!(
-                        batch.best.to_bits(),
-                        each.best.to_bits(),
-                        "max {max}, start {start}, values {values:?}"
-                    );
-                }
+            for start in [f32::NEG_INFINITY, f32::INFINITY, 0.0, -0.0, 0.5] {
+                same_bits::<true>(start, &ts[..n], &values);
+                same_bits::<false>(start, &ts[..n], &values);
             }
         }
     }
