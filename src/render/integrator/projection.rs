@@ -77,6 +77,18 @@ trait Ranked: Consumer {
         self.skippable(0, range)
     }
 
+    /// Whether a cell of `range` can be passed over now: one before samples
+    /// already taken (`earlier`, [`Ranked::skippable_earlier`]) or after every one
+    /// ([`Consumer::skippable`]).
+    #[inline(always)]
+    fn passes_over(&self, range: [f32; 2], earlier: bool) -> bool {
+        if earlier {
+            self.skippable_earlier(range)
+        } else {
+            self.skippable(0, range)
+        }
+    }
+
     /// Whether the ray's first sample alone gives the result when the best rank
     /// of its cells is `best` (a maximum over cells of zeros only).
     fn first_settles(&self, _best: f32) -> bool {
@@ -434,7 +446,7 @@ fn brightest_first<F: Field, C: Ranked>(
             runs.flush(field, &ray.index, e);
         }
         let range = grid.range(spans[s].1 as usize);
-        if (earlier && e.skippable_earlier(range)) || (!earlier && e.skippable(0, range)) {
+        if e.passes_over(range, earlier) {
             return;
         }
         let a = if s == 0 {
@@ -465,11 +477,8 @@ fn brightest_first<F: Field, C: Ranked>(
             continue;
         }
         let earlier = s < best_span;
-        if runs.len < FLUSH_AT {
-            let range = grid.range(cell as usize);
-            if (earlier && e.skippable_earlier(range)) || (!earlier && e.skippable(0, range)) {
-                continue;
-            }
+        if runs.len < FLUSH_AT && e.passes_over(grid.range(cell as usize), earlier) {
+            continue;
         }
         sample(e, &mut runs, s, earlier);
     }
