@@ -144,6 +144,7 @@ impl View {
 
     /// The ray through image position `(x, y)` in pixels (`(i + 0.5, j + 0.5)` is the
     /// centre of pixel `(i, j)`; row 0 at the top).
+    #[inline]
     pub fn ray(&self, x: f64, y: f64) -> Ray {
         let px = x / self.width as f64 * 2.0 - 1.0;
         let py = 1.0 - y / self.height as f64 * 2.0;
@@ -165,12 +166,14 @@ impl View {
     }
 
     /// The ray through the centre of pixel `(i, j)`.
+    #[inline]
     pub fn pixel_ray(&self, i: usize, j: usize) -> Ray {
         self.ray(i as f64 + 0.5, j as f64 + 0.5)
     }
 
     /// Where depth is measured from along `ray`: its entry into the bounding sphere,
     /// or its origin if that is inside the sphere. `None` if it misses the sphere.
+    #[inline]
     pub fn depth_reference(&self, ray: &Ray) -> Option<f64> {
         let (c, r) = self.sphere;
         let oc = ray.origin - c;

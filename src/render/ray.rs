@@ -82,6 +82,7 @@ impl IndexFrame {
     }
 
     /// The index-space form of a world ray.
+    #[inline]
     pub fn to_index(&self, origin: DVec3, dir: DVec3) -> IndexRay {
         IndexRay {
             o: self.index_from_world * (origin - self.origin),
@@ -93,6 +94,7 @@ impl IndexFrame {
     /// the ray is inside the box, or `None` if it misses. A ray that grazes an
     /// edge or corner gets a one-point interval; a component of `d` equal to zero
     /// is handled without dividing by it.
+    #[inline]
     pub fn clip(&self, ray: &IndexRay, t_min: f64) -> Option<(f64, f64)> {
         let mut t0 = t_min;
         let mut t1 = f64::INFINITY;
