@@ -139,6 +139,14 @@ pub trait Field: Sync {
             *v = self.value_cached(o + d * t, cache);
         }
     }
+    /// How many samples [`Field::values_along`] takes at once on this machine (1:
+    /// one at a time). A call of a length that is not a multiple of it samples the
+    /// last few on a narrower path, so a caller with samples to spare may pad a
+    /// call to a multiple of it (the same bits for the samples it keeps).
+    #[inline(always)]
+    fn lanes(&self) -> usize {
+        1
+    }
     /// The gradient of the normalised value at `p`, in world units
     /// (normalised value per world unit).
     fn gradient(&self, p: DVec3) -> DVec3;
@@ -164,6 +172,10 @@ impl<F: Field + ?Sized> Field for &F {
     #[inline(always)]
     fn values_along(&self, o: DVec3, d: DVec3, ts: &[f64], out: &mut [f32], cache: &mut CellCache) {
         (**self).values_along(o, d, ts, out, cache)
+    }
+    #[inline(always)]
+    fn lanes(&self) -> usize {
+        (**self).lanes()
     }
     fn gradient(&self, p: DVec3) -> DVec3 {
         (**self).gradient(p)

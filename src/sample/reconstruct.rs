@@ -126,6 +126,11 @@ impl<T: Voxel> Field for Trilinear<'_, T> {
             .trilinear_along(o.to_array(), d.to_array(), ts, out, cache)
     }
 
+    #[inline(always)]
+    fn lanes(&self) -> usize {
+        self.grid.lanes()
+    }
+
     fn gradient(&self, p: DVec3) -> DVec3 {
         self.gradients.interpolated(&self.grid, p)
     }
