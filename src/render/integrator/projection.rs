@@ -10,7 +10,7 @@
 use std::ops::ControlFlow;
 
 use super::xray::Trapezoid;
-use super::{drive, take_each, Batch, Consumer, Counts, Integrand, PixelRay, BATCH};
+use super::{drive, padded, take_each, Batch, Consumer, Counts, Integrand, PixelRay, BATCH};
 use crate::render::march::{Lattice, March};
 use crate::render::ray::IndexRay;
 use crate::render::skip::MacroGrid;
@@ -533,37 +533,12 @@ impl Runs {
         let n = std::mem::take(&mut self.len);
         if n > 0 {
             let b = &mut self.batch;
-            let lanes = field.lanes();
-            let m = if lanes > 1 && n % lanes >= 2 {
-                pad(&mut b.ts, n, lanes)
-            } else {
-                n
-            };
+            let m = padded(&mut b.ts, n, field.lanes());
             field.values_along(ray.o, ray.d, &b.ts[..m], &mut b.values[..m], &mut b.cache);
             // the extremum's consumers never stop a ray (nor use the indices)
             let _ = e.take_batch(0, &b.ts[..n], &b.values[..n]);
         }
     }
-}
-
-/// Pads the `n` positions of `ts` to a multiple of `lanes` (at most [`BATCH`])
-/// with the last one repeated, and returns how many there are then: a tail of two
-/// or more samples then goes through the field's widest path with the others (on
-/// the eight-lane path, rather than the four-lane and one-sample ones), and the
-/// extra samples are discarded. Repeating the last position keeps every lane's
-/// position between the first and the last, where the sampler may leave out its
-/// clamps. Nine flushes in ten of an oblique view's MIP have a tail (those along
-/// an axis have none): 0.96-0.98x the CPU time of an oblique uint8 MIP frame on
-/// the eight-lane path (`bench/peers/README.md`, twenty-third round). Out of line,
-/// so that views along an axis, whose flushes never need it, run the code they ran
-/// before.
-#[cold]
-#[inline(never)]
-fn pad(ts: &mut [f64; BATCH], n: usize, lanes: usize) -> usize {
-    let m = n.next_multiple_of(lanes).min(BATCH);
-    let last = ts[n - 1];
-    ts[n..m].fill(last);
-    m
 }
 
 impl Integrand for Mip {
@@ -725,7 +700,7 @@ impl Integrand for Lmip {
 
 #[cfg(test)]
 mod tests {
-    use super::super::testing::{along_x, Line};
+    use super::super::testing::{along_x, Lanes, Line};
     use super::super::trace;
     use super::*;
     use glam::DVec3;
@@ -776,45 +751,6 @@ mod tests {
         }
     }
 
-    /// A field along x that takes `lanes` samples at a time, recording the
-    /// positions of each call.
-    struct Lanes {
-        lanes: usize,
-        calls: std::sync::Mutex<Vec<Vec<f64>>>,
-    }
-
-    impl Field for Lanes {
-        fn sizes(&self) -> [usize; 3] {
-            [64, 1, 1]
-        }
-        fn value(&self, p: DVec3) -> f32 {
-            // a maximum in the middle of the ray, and different values either side
-            (1.0 - (p.x - 9.3).abs() / 40.0) as f32
-        }
-        fn values_along(
-            &self,
-            o: DVec3,
-            d: DVec3,
-            ts: &[f64],
-            out: &mut [f32],
-            _cache: &mut crate::sample::CellCache,
-        ) {
-            self.calls.lock().unwrap().push(ts.to_vec());
-            for (v, &t) in out.iter_mut().zip(ts) {
-                *v = self.value(o + d * t);
-            }
-        }
-        fn lanes(&self) -> usize {
-            self.lanes
-        }
-        fn gradient(&self, _p: DVec3) -> DVec3 {
-            DVec3::ZERO
-        }
-        fn cell_corners(&self, _c: [usize; 3]) -> [f32; 8] {
-            [0.0; 8]
-        }
-    }
-
     /// `Runs::flush` pads a tail of two or more samples to a multiple of the
     /// field's lanes with the last position, and hands the consumer only the
     /// samples it was given: the maximum is that of those samples.
@@ -824,10 +760,7 @@ mod tests {
         let march = March::new(0.0, 63.0, 0.5);
         for lanes in [1, 4, 8] {
             for n in 1..BATCH {
-                let field = Lanes {
-                    lanes,
-                    calls: Default::default(),
-                };
+                let field = Lanes::new(lanes);
                 let mut runs = Runs::default();
                 let mut e = Extremum::<true> {
                     best: f32::NEG_INFINITY,
@@ -836,7 +769,7 @@ mod tests {
                 let from = march.len() - n;
                 runs.push(&field, &ray.index, &march, from, march.len(), &mut e);
                 runs.flush(&field, &ray.index, &mut e);
-                let calls = std::mem::take(&mut *field.calls.lock().unwrap());
+                let calls = field.calls();
                 assert_eq!(calls.len(), 1, "lanes {lanes}, n {n}");
                 let asked = &calls[0];
                 let padded = lanes > 1 && n % lanes >= 2;
