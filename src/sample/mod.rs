@@ -139,8 +139,8 @@ pub trait Field: Sync {
             *v = self.value_cached(o + d * t, cache);
         }
     }
-    /// How many samples [`Field::values_along`] takes at once on this machine (1:
-    /// one at a time). A call of a length that is not a multiple of it samples the
+    /// How many samples [`Field::values_along`] takes at once on this machine, a
+    /// power of two (1: one at a time). A call of a length that is not a multiple of it samples the
     /// last few on a narrower path, so a caller with samples to spare may pad a
     /// call to a multiple of it (the same bits for the samples it keeps).
     #[inline(always)]

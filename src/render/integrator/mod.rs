@@ -209,7 +209,7 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
         lattice,
         field,
         index: &ray.index,
-        batch: Batch::default(),
+        batch: Batch::for_field(field),
         i: 0,
         gap: false,
         open: None,
@@ -367,6 +367,9 @@ struct Batch {
     ts: [f64; BATCH],
     values: [f32; BATCH],
     cache: CellCache,
+    /// The field's [`Field::lanes`], asked once per ray ([`Batch::for_field`]; 1,
+    /// no padding, by default).
+    lanes: usize,
 }
 
 /// Samples per [`Batch`]: enough to amortise a call into the vector path (its
@@ -382,6 +385,7 @@ impl Default for Batch {
             ts: [0.0; BATCH],
             values: [0.0; BATCH],
             cache: CellCache::default(),
+            lanes: 1,
         }
     }
 }
@@ -394,31 +398,46 @@ impl Default for Batch {
 /// and one-sample ones), and the caller discards the extra samples. Repeating the
 /// last position keeps every lane's position between the first and the last,
 /// where the sampler may leave out its clamps. Three in four of an oblique view's
-/// MIP flushes end in such a tail (along an axis none do), as do a composite's
-/// runs of cells: on the eight-lane path, 0.96-0.98x the CPU time of an oblique
-/// uint8 MIP frame and 0.97-0.98x that of the peer benchmark's composite frames,
-/// X-ray frames unchanged (`bench/peers/README.md`, twenty-third round).
+/// MIP flushes end in such a tail (along an axis none do): on the eight-lane path
+/// 0.95-0.98x the CPU time of an oblique uint8 MIP frame; the peer benchmark's
+/// composite and X-ray frames 0.97-1.00x; its MIP along an axis, which pads
+/// nothing, 1.004-1.006x the instructions for the test (`bench/peers/README.md`,
+/// twenty-third round).
 #[inline(always)]
 fn padded(ts: &mut [f64; BATCH], n: usize, lanes: usize) -> usize {
-    if lanes > 1 && n % lanes >= 2 {
-        pad(ts, n, lanes)
+    // a mask, not `%`: `lanes` is known at run time only, and a division per
+    // batch cost more than the padding saves
+    debug_assert!(lanes.is_power_of_two());
+    let tail = n & (lanes - 1);
+    if tail >= 2 {
+        pad(ts, n, n - tail + lanes)
     } else {
         n
     }
 }
 
-/// [`padded`]'s padding, out of line, so that views along an axis, whose batches
-/// need none, run the code they ran before.
+/// [`padded`]'s padding of `ts` from `n` to `m` positions (at most [`BATCH`]), out
+/// of line, so that views along an axis, whose batches need none, run the code
+/// they ran before.
 #[cold]
 #[inline(never)]
-fn pad(ts: &mut [f64; BATCH], n: usize, lanes: usize) -> usize {
-    let m = n.next_multiple_of(lanes).min(BATCH);
+fn pad(ts: &mut [f64; BATCH], n: usize, m: usize) -> usize {
+    let m = m.min(BATCH);
     let last = ts[n - 1];
     ts[n..m].fill(last);
     m
 }
 
 impl Batch {
+    /// A batch for samples of `field`, padded to its lanes ([`padded`]).
+    #[inline(always)]
+    fn for_field<F: Field>(field: &F) -> Batch {
+        Batch {
+            lanes: field.lanes(),
+            ..Batch::default()
+        }
+    }
+
     /// Hands `consumer` samples `from..to` of `lattice` in order; the sample at
     /// which it stopped, if it did (a few samples after that one may have been
     /// computed, never handed over).
@@ -436,7 +455,7 @@ impl Batch {
         while i < to {
             let m = (to - i).min(BATCH);
             lattice.fill(i, &mut self.ts[..m]);
-            let k = padded(&mut self.ts, m, field.lanes());
+            let k = padded(&mut self.ts, m, self.lanes);
             field.values_along(
                 ray.o,
                 ray.d,
@@ -651,7 +670,7 @@ mod tests {
             for (from, to) in [(0, 1), (3, 5), (0, 64), (1, 66), (10, 127), (0, 127)] {
                 let field = Lanes::new(lanes);
                 let mut rec = Record::default();
-                let mut batch = Batch::default();
+                let mut batch = Batch::for_field(&field);
                 let stopped = batch.sample(&field, &ray.index, &march, from, to, &mut rec);
                 assert_eq!(stopped, None);
                 let want: Vec<_> = (from..to)

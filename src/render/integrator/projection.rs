@@ -238,7 +238,7 @@ impl<const MAX: bool> Ranked for Extremum<MAX> {
 /// Hands `e` the first sample of `march` (if it has one); the samples taken.
 fn first_sample<F: Field, C: Consumer>(field: &F, ray: &PixelRay, march: &March, e: &mut C) -> u64 {
     let first = march.len().min(1);
-    let _ = Batch::default().sample(field, &ray.index, march, 0, first, e);
+    let _ = Batch::for_field(field).sample(field, &ray.index, march, 0, first, e);
     first as u64
 }
 
@@ -437,7 +437,7 @@ fn brightest_first<F: Field, C: Ranked>(
         }
     };
     let mut taken = 0u64;
-    let mut runs = Runs::default();
+    let mut runs = Runs::for_field(field);
     // the span last sampled and its end: a span sampled right after the one before
     // it starts where that one ended
     let mut last = (usize::MAX, 0);
@@ -498,13 +498,21 @@ const FLUSH_AT: usize = 32;
 /// Samples of several runs of a march, handed to a ranked consumer (which never
 /// stops a ray) in one call of the sampler: in order, [`BATCH`] at a time, in the
 /// first `len` places of `batch`.
-#[derive(Default)]
 struct Runs {
     batch: Batch,
     len: usize,
 }
 
 impl Runs {
+    /// Runs of samples of `field`.
+    #[inline(always)]
+    fn for_field<F: Field>(field: &F) -> Runs {
+        Runs {
+            batch: Batch::for_field(field),
+            len: 0,
+        }
+    }
+
     /// Adds samples `a..b` of `march`, handing over a full batch.
     #[inline(always)]
     fn push<F: Field, C: Ranked>(
@@ -533,7 +541,7 @@ impl Runs {
         let n = std::mem::take(&mut self.len);
         if n > 0 {
             let b = &mut self.batch;
-            let m = padded(&mut b.ts, n, field.lanes());
+            let m = padded(&mut b.ts, n, b.lanes);
             field.values_along(ray.o, ray.d, &b.ts[..m], &mut b.values[..m], &mut b.cache);
             // the extremum's consumers never stop a ray (nor use the indices)
             let _ = e.take_batch(0, &b.ts[..n], &b.values[..n]);
@@ -761,7 +769,7 @@ mod tests {
         for lanes in [1, 4, 8] {
             for n in 1..BATCH {
                 let field = Lanes::new(lanes);
-                let mut runs = Runs::default();
+                let mut runs = Runs::for_field(&field);
                 let mut e = Extremum::<true> {
                     best: f32::NEG_INFINITY,
                 };
