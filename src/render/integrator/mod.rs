@@ -455,12 +455,13 @@ impl Batch {
         while i < to {
             let m = (to - i).min(BATCH);
             lattice.fill(i, &mut self.ts[..m]);
-            let k = padded(&mut self.ts, m, self.lanes);
+            // the sampler's share: `m`, or more where the tail is padded
+            let sampled = padded(&mut self.ts, m, self.lanes);
             field.values_along(
                 ray.o,
                 ray.d,
-                &self.ts[..k],
-                &mut self.values[..k],
+                &self.ts[..sampled],
+                &mut self.values[..sampled],
                 &mut self.cache,
             );
             if let ControlFlow::Break(k) = consumer.take_batch(i, &self.ts[..m], &self.values[..m])
@@ -548,6 +549,7 @@ pub(super) mod testing {
     }
 
     impl Lanes {
+        /// A field that says it takes `lanes` samples at a time.
         pub fn new(lanes: usize) -> Lanes {
             Lanes {
                 lanes,
