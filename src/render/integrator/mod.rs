@@ -362,7 +362,10 @@ impl<L: Lattice, F: Field> Runs<'_, L, F> {
 }
 
 /// Samples along a ray taken [`BATCH`] at a time ([`Field::values_along`]), with the
-/// sampler's cell cache: the positions and values of one batch.
+/// sampler's cell cache: the positions and values of one batch. Aligned to a cache
+/// line, so that the vector paths' loads and stores of eight positions never
+/// straddle two lines, wherever the batch lands on the stack.
+#[repr(C, align(64))]
 struct Batch {
     ts: [f64; BATCH],
     values: [f32; BATCH],
