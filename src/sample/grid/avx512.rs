@@ -127,7 +127,11 @@ impl<T: Voxel> Grid<'_, T> {
                 self.groups_avx512::<true>(&c, &ts[..rest], &mut out[..rest], from_two);
             }
         }
-        self.trilinear_avx2(o, d, &ts[rest..], &mut out[rest..]);
+        // (a call whose length is a multiple of eight, as every call of a MIP along
+        // an axis is, has no tail: the four-lane path would only set up its lanes)
+        if rest < ts.len() {
+            self.trilinear_avx2(o, d, &ts[rest..], &mut out[rest..]);
+        }
     }
 
     /// [`Grid::trilinear_avx512`] of whole groups of eight (`ts.len()` a multiple of
