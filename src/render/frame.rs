@@ -137,7 +137,11 @@ impl<'a, F: Field, I: Integrand> Kernel<'a, F, I> {
         };
         let (t_box, t_exit) = frame.clip(&index, t_min)?;
         // depth is measured from the bounding sphere (or the box), whatever the cut
-        let t_depth_ref = view.depth_reference(&ray).unwrap_or(t_box);
+        let t_depth_ref = if self.integrand.reads_depth_reference() {
+            view.depth_reference(&ray).unwrap_or(t_box)
+        } else {
+            t_box
+        };
         let (t_enter, t_exit, cut) = if self.clips.is_empty() {
             (t_box, t_exit, None)
         } else {

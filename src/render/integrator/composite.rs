@@ -366,6 +366,10 @@ fn last_clear_unit(last: f32, up_to: f32) -> f32 {
 }
 
 impl Integrand for Composite {
+    fn reads_depth_reference(&self) -> bool {
+        false
+    }
+
     fn channels(&self) -> usize {
         4
     }

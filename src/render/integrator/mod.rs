@@ -61,7 +61,8 @@ pub struct PixelRay {
     pub t_enter: f64,
     /// Exit from the box.
     pub t_exit: f64,
-    /// Where depth is measured from.
+    /// Where depth is measured from (the ray's entry into the box where the
+    /// integrand does not read it: [`Integrand::reads_depth_reference`]).
     pub t_depth_ref: f64,
     /// The clipping plane the ray enters through, when a plane (not the box) sets
     /// `t_enter`.
@@ -97,6 +98,14 @@ pub trait Integrand: Sync {
         } else {
             [f32::NAN, 0.0, 0.0, 0.0]
         }
+    }
+
+    /// Whether the integrand reads [`PixelRay::t_depth_ref`] (depth output, depth
+    /// cues): true by default; the integrands that never do say false, and their
+    /// rays skip the bounding-sphere intersection that finds it (a square root per
+    /// ray; 0.99x the CPU time of a perspective composite frame).
+    fn reads_depth_reference(&self) -> bool {
+        true
     }
 
     /// Whether every ray passes over macrocell `cell`, whose values lie in `range`,

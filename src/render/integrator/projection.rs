@@ -550,6 +550,10 @@ impl Runs {
 }
 
 impl Integrand for Mip {
+    fn reads_depth_reference(&self) -> bool {
+        false
+    }
+
     fn channels(&self) -> usize {
         1
     }
@@ -575,6 +579,10 @@ impl Integrand for Mip {
 }
 
 impl Integrand for Minip {
+    fn reads_depth_reference(&self) -> bool {
+        false
+    }
+
     fn channels(&self) -> usize {
         1
     }
@@ -592,6 +600,10 @@ impl Integrand for Minip {
 }
 
 impl Integrand for Average {
+    fn reads_depth_reference(&self) -> bool {
+        false
+    }
+
     fn channels(&self) -> usize {
         1
     }
@@ -659,6 +671,10 @@ impl Consumer for Climb {
 }
 
 impl Integrand for Lmip {
+    fn reads_depth_reference(&self) -> bool {
+        false
+    }
+
     fn channels(&self) -> usize {
         1
     }

@@ -20,6 +20,10 @@ pub struct Xray {
 }
 
 impl Integrand for Xray {
+    fn reads_depth_reference(&self) -> bool {
+        false
+    }
+
     fn channels(&self) -> usize {
         1
     }
