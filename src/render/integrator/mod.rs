@@ -656,6 +656,57 @@ mod tests {
         }
     }
 
+    /// The integrands that say they do not read [`PixelRay::t_depth_ref`] give the
+    /// same bits wherever it lies; one that reads it (depth) does not, so the
+    /// comparison can tell.
+    #[test]
+    fn integrands_that_skip_the_depth_reference_do_not_read_it() {
+        use crate::scene::XrayOutput;
+        use crate::transfer::{Interpolation as Ramp, Transfer1D};
+        let v: Vec<f32> = (0..40).map(|i| ((i as f32) * 0.37).sin().abs()).collect();
+        let field = Line(&v);
+        let at = |depth_ref: f64| {
+            let mut ray = along_x(39.0);
+            ray.t_depth_ref = depth_ref;
+            ray
+        };
+        fn bits<I: Integrand>(i: &I, field: &Line, ray: &PixelRay) -> [u32; 4] {
+            trace(i, field, ray, 0.5, 0.0).0.map(f32::to_bits)
+        }
+        fn same<I: Integrand>(i: &I, field: &Line, a: &PixelRay, b: &PixelRay) -> bool {
+            bits(i, field, a) == bits(i, field, b)
+        }
+        let (a, b) = (at(0.0), at(-7.25));
+        let tf = Transfer1D::new(
+            vec![(0.0, [1.0, 0.5, 0.2])],
+            vec![(0.0, 0.0), (0.3, 0.0), (1.0, 0.4)],
+            Ramp::Linear,
+        )
+        .unwrap();
+        let composite = Composite::new(
+            CompositeTable::OneD(tf.table(256)),
+            0.5,
+            1.0,
+            None,
+            0.99,
+            1.0,
+            None,
+        );
+        let xray = Xray {
+            output: XrayOutput::Integral,
+            mu: 1.0,
+        };
+        let lmip = Lmip { threshold: 0.6 };
+        assert!(!composite.reads_depth_reference() && same(&composite, &field, &a, &b));
+        assert!(!Mip.reads_depth_reference() && same(&Mip, &field, &a, &b));
+        assert!(!Minip.reads_depth_reference() && same(&Minip, &field, &a, &b));
+        assert!(!Average.reads_depth_reference() && same(&Average, &field, &a, &b));
+        assert!(!lmip.reads_depth_reference() && same(&lmip, &field, &a, &b));
+        assert!(!xray.reads_depth_reference() && same(&xray, &field, &a, &b));
+        let depth = Depth { threshold: 0.5 };
+        assert!(depth.reads_depth_reference() && !same(&depth, &field, &a, &b));
+    }
+
     /// Every sample handed over: its index, position and value.
     #[derive(Default)]
     struct Record(Vec<(usize, f64, f32)>);
