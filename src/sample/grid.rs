@@ -350,12 +350,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// grid of raw bytes, [`Grid::with_raw_bytes`], of the bytes, then normalised).
     #[inline(always)]
     pub fn trilinear(&self, p: [f64; 3]) -> f32 {
-        #[cfg(target_arch = "x86_64")]
-        if self.sse2 {
-            // SAFETY: SSE2 is part of x86-64; `sse2` says the indices fit an i32.
-            return unsafe { self.trilinear_sse2(p, None) };
-        }
-        self.trilinear_scalar(p)
+        self.single::<false>(p)
     }
 
     /// [`Grid::trilinear`], keeping the last cell's normalised corners in `cache`:
@@ -363,13 +358,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// half-voxel step) reads no voxel. The same values, so the same bits.
     #[inline(always)]
     pub fn trilinear_cached(&self, p: [f64; 3], cache: &mut CellCache) -> f32 {
-        #[cfg(target_arch = "x86_64")]
-        if self.sse2 {
-            // SAFETY: as in `trilinear`.
-            return unsafe { self.trilinear_sse2(p, Some(cache)) };
-        }
-        let _ = cache;
-        self.trilinear_scalar(p)
+        self.cached::<false>(p, cache)
     }
 
     /// [`Grid::trilinear_cached`] at `o + d t` for each `t` of `ts`, into `out` (as
@@ -384,22 +373,91 @@ impl<'a, T: Voxel> Grid<'a, T> {
         out: &mut [f32],
         cache: &mut CellCache,
     ) {
+        self.along::<false>(o, d, ts, out, cache)
+    }
+
+    /// The map from the values of [`Grid::raw_along`] to the samples, where this
+    /// grid has that path: a grid of raw bytes ([`Grid::with_raw_bytes`]) whose
+    /// window increases, so that the map, [`Normalize::apply`], does not decrease
+    /// (its subtraction, multiplication by a positive scale, clamps and rounding to
+    /// f32 each keep the order). The largest (smallest) of the samples at some
+    /// positions is then the map of the largest (smallest) raw value there: a MIP
+    /// over such a grid normalises once per batch rather than once per sample.
+    pub fn raw_map(&self) -> Option<Normalize> {
+        (self.raw_bytes && self.norm.lo_scale().1 > 0.0).then_some(self.norm)
+    }
+
+    /// [`Grid::trilinear_along`] without the last step of each sample on a grid of
+    /// raw bytes: the interpolated bytes, not normalised, each of which
+    /// [`Normalize::apply`] by the grid's window turns into the bits
+    /// [`Grid::trilinear_along`] gives there.
+    ///
+    /// # Panics
+    /// In a debug build, if the grid does not read raw bytes.
+    #[inline(always)]
+    pub fn raw_along(
+        &self,
+        o: [f64; 3],
+        d: [f64; 3],
+        ts: &[f64],
+        out: &mut [f32],
+        cache: &mut CellCache,
+    ) {
+        debug_assert!(self.raw_bytes, "raw values of a grid of raw bytes only");
+        self.along::<true>(o, d, ts, out, cache)
+    }
+
+    /// [`Grid::trilinear_along`], or with `RAW`, [`Grid::raw_along`].
+    #[inline(always)]
+    fn along<const RAW: bool>(
+        &self,
+        o: [f64; 3],
+        d: [f64; 3],
+        ts: &[f64],
+        out: &mut [f32],
+        cache: &mut CellCache,
+    ) {
         // the vector paths exist for the types they read (a constant per `T`,
         // so the other types do not compile them)
         #[cfg(target_arch = "x86_64")]
         if const { avx2::Gather::reads(T::TYPE) } {
             if self.wide {
                 // SAFETY: `wide` is set only with `gather` on a machine with AVX-512.
-                return unsafe { self.trilinear_avx512(o, d, ts, out) };
+                return unsafe { self.trilinear_avx512::<RAW>(o, d, ts, out) };
             }
             if self.gather.is_some() {
                 // SAFETY: `gather` is set only when the machine has AVX2.
-                return unsafe { self.trilinear_avx2(o, d, ts, out) };
+                return unsafe { self.trilinear_avx2::<RAW>(o, d, ts, out) };
             }
         }
         for (v, &t) in out.iter_mut().zip(ts) {
-            *v = self.trilinear_cached([0, 1, 2].map(|a| o[a] + d[a] * t), cache);
+            *v = self.cached::<RAW>([0, 1, 2].map(|a| o[a] + d[a] * t), cache);
         }
+    }
+
+    /// [`Grid::trilinear_cached`], or with `RAW`, its value before the last step
+    /// ([`Grid::finish`]).
+    #[inline(always)]
+    fn cached<const RAW: bool>(&self, p: [f64; 3], cache: &mut CellCache) -> f32 {
+        #[cfg(target_arch = "x86_64")]
+        if self.sse2 {
+            // SAFETY: as in `single`.
+            return unsafe { self.trilinear_sse2::<RAW>(p, Some(cache)) };
+        }
+        let _ = cache;
+        self.trilinear_scalar::<RAW>(p)
+    }
+
+    /// [`Grid::trilinear`], or with `RAW`, its value before the last step
+    /// ([`Grid::finish`]).
+    #[inline(always)]
+    pub(super) fn single<const RAW: bool>(&self, p: [f64; 3]) -> f32 {
+        #[cfg(target_arch = "x86_64")]
+        if self.sse2 {
+            // SAFETY: SSE2 is part of x86-64; `sse2` says the indices fit an i32.
+            return unsafe { self.trilinear_sse2::<RAW>(p, None) };
+        }
+        self.trilinear_scalar::<RAW>(p)
     }
 
     /// How many samples [`Grid::trilinear_along`] takes at once on this machine: 8
@@ -419,7 +477,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
     }
 
     #[inline(always)]
-    fn trilinear_scalar(&self, p: [f64; 3]) -> f32 {
+    fn trilinear_scalar<const RAW: bool>(&self, p: [f64; 3]) -> f32 {
         let c = self.locate(p);
         let [fx, fy, fz] = c.f;
         let [c000, c100, c010, c110, c001, c101, c011, c111] = if self.raw_bytes {
@@ -432,14 +490,17 @@ impl<'a, T: Voxel> Grid<'a, T> {
         let x10 = lerp(c010, c110, fx);
         let x01 = lerp(c001, c101, fx);
         let x11 = lerp(c011, c111, fx);
-        self.finish(lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz))
+        self.finish::<RAW>(lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz))
     }
 
     /// A sample from its interpolated value: clamped to [0, 1] as `f32::clamp`
-    /// does, or, for a grid of raw bytes, normalised ([`Normalize::apply`]).
+    /// does, or, for a grid of raw bytes, normalised ([`Normalize::apply`]); with
+    /// `RAW` (a grid of raw bytes, [`Grid::raw_along`]), left as it is.
     #[inline(always)]
-    fn finish(&self, v: f32) -> f32 {
-        if self.raw_bytes {
+    fn finish<const RAW: bool>(&self, v: f32) -> f32 {
+        if RAW {
+            v
+        } else if self.raw_bytes {
             self.norm.apply(f64::from(v))
         } else {
             v.clamp(0.0, 1.0)
@@ -461,7 +522,11 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// about half the instructions.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    unsafe fn trilinear_sse2(&self, p: [f64; 3], cache: Option<&mut CellCache>) -> f32 {
+    unsafe fn trilinear_sse2<const RAW: bool>(
+        &self,
+        p: [f64; 3],
+        cache: Option<&mut CellCache>,
+    ) -> f32 {
         use std::arch::x86_64::*;
         // x and y in one register, z in another: clamp to [0, last], the cell's
         // first voxel is the truncation of min(x, top) (the same as min(trunc(x),
@@ -498,7 +563,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
         // z: lane 0 towards lane 1
         let y0 = _mm_cvtss_f32(y);
         let y1 = _mm_cvtss_f32(_mm_shuffle_ps(y, y, 0b00_00_00_01));
-        self.finish(y0 + (y1 - y0) * fz)
+        self.finish::<RAW>(y0 + (y1 - y0) * fz)
     }
 
     /// The normalised voxels of the cell at `base` as the interpolation along x takes

@@ -147,6 +147,28 @@ pub trait Field: Sync {
     fn lanes(&self) -> usize {
         1
     }
+    /// Where the values of [`Field::raw_values_along`] map to this field's samples
+    /// through a map that does not decrease: that map (the sample at a position is
+    /// `map.apply(raw)` there, bit for bit). The largest or smallest of a run of
+    /// samples is then the map of the largest or smallest raw value, so a MIP or
+    /// MinIP maps one value per batch instead of every sample. `None` (the
+    /// default): no such path.
+    fn raw_map(&self) -> Option<Normalize> {
+        None
+    }
+    /// [`Field::values_along`] before the map of [`Field::raw_map`] (called only
+    /// where that is `Some`; the default is [`Field::values_along`]).
+    #[inline(always)]
+    fn raw_values_along(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        ts: &[f64],
+        out: &mut [f32],
+        cache: &mut CellCache,
+    ) {
+        self.values_along(o, d, ts, out, cache)
+    }
     /// The gradient of the normalised value at `p`, in world units
     /// (normalised value per world unit).
     fn gradient(&self, p: DVec3) -> DVec3;
@@ -176,6 +198,21 @@ impl<F: Field + ?Sized> Field for &F {
     #[inline(always)]
     fn lanes(&self) -> usize {
         (**self).lanes()
+    }
+    #[inline(always)]
+    fn raw_map(&self) -> Option<Normalize> {
+        (**self).raw_map()
+    }
+    #[inline(always)]
+    fn raw_values_along(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        ts: &[f64],
+        out: &mut [f32],
+        cache: &mut CellCache,
+    ) {
+        (**self).raw_values_along(o, d, ts, out, cache)
     }
     fn gradient(&self, p: DVec3) -> DVec3 {
         (**self).gradient(p)

@@ -131,6 +131,29 @@ impl<T: Voxel> Field for Trilinear<'_, T> {
         self.grid.lanes()
     }
 
+    #[inline(always)]
+    fn raw_map(&self) -> Option<Normalize> {
+        self.grid.raw_map()
+    }
+
+    #[inline(always)]
+    fn raw_values_along(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        ts: &[f64],
+        out: &mut [f32],
+        cache: &mut CellCache,
+    ) {
+        // (only 8-bit grids read raw bytes: the other types do not compile the path)
+        if const { matches!(T::TYPE, crate::volume::ScalarType::Uint8) } {
+            self.grid
+                .raw_along(o.to_array(), d.to_array(), ts, out, cache)
+        } else {
+            self.values_along(o, d, ts, out, cache)
+        }
+    }
+
     fn gradient(&self, p: DVec3) -> DVec3 {
         self.gradients.interpolated(&self.grid, p)
     }

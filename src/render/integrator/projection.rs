@@ -14,7 +14,7 @@ use super::{drive, padded, take_each, Batch, Consumer, Counts, Integrand, PixelR
 use crate::render::march::{Lattice, March};
 use crate::render::ray::IndexRay;
 use crate::render::skip::MacroGrid;
-use crate::sample::Field;
+use crate::sample::{Field, Normalize};
 use crate::transfer::Colormap;
 
 /// Maximum intensity projection.
@@ -93,6 +93,17 @@ trait Ranked: Consumer {
     /// of its cells is `best` (a maximum over cells of zeros only).
     fn first_settles(&self, _best: f32) -> bool {
         false
+    }
+
+    /// Whether the consumer takes a field's raw values ([`Ranked::take_raw_batch`])
+    /// where the field has them ([`Field::raw_map`]).
+    const TAKES_RAW: bool = false;
+
+    /// [`Consumer::take_batch`] of the samples `map.apply(raw)` of `raws` (raw
+    /// values of a field, [`Field::raw_values_along`], whose map does not
+    /// decrease), with the same result. Called only where [`Ranked::TAKES_RAW`].
+    fn take_raw_batch(&mut self, _map: &Normalize, _raws: &[f32]) {
+        unreachable!("raw values go only to a consumer that takes them");
     }
 }
 
@@ -232,6 +243,23 @@ impl<const MAX: bool> Ranked for Extremum<MAX> {
     /// sample, +0 or -0).
     fn first_settles(&self, best: f32) -> bool {
         MAX && best <= 0.0
+    }
+
+    const TAKES_RAW: bool = true;
+
+    /// The raw values' extremum in eight lanes, mapped, then taken as one sample:
+    /// the map does not decrease, so it is the extremum of the mapped values (a
+    /// sample among them). Mapped values are never -0 ([`Normalize::apply`] gives
+    /// +0 at and below the window), so the one that compares equal to the
+    /// extremum has its bits, as the samples in order would leave it.
+    #[inline(always)]
+    fn take_raw_batch(&mut self, map: &Normalize, raws: &[f32]) {
+        let raw = if MAX {
+            lane_extremum(raws, f32::NEG_INFINITY, |a, b| a > b)
+        } else {
+            lane_extremum(raws, f32::INFINITY, |a, b| a < b)
+        };
+        let _ = self.take(0, 0.0, map.apply(f64::from(raw)));
     }
 }
 
@@ -437,7 +465,7 @@ fn brightest_first<F: Field, C: Ranked>(
         }
     };
     let mut taken = 0u64;
-    let mut runs = Runs::for_field(field);
+    let mut runs = Runs::for_field::<F, C>(field);
     // the span last sampled and its end: a span sampled right after the one before
     // it starts where that one ended
     let mut last = (usize::MAX, 0);
@@ -501,15 +529,19 @@ const FLUSH_AT: usize = 32;
 struct Runs {
     batch: Batch,
     len: usize,
+    /// The field's raw values are sampled and handed over, and this map turns them
+    /// into its samples ([`Ranked::TAKES_RAW`], [`Field::raw_map`]).
+    raw: Option<Normalize>,
 }
 
 impl Runs {
-    /// Runs of samples of `field`.
+    /// Runs of samples of `field` for consumers of type `C`.
     #[inline(always)]
-    fn for_field<F: Field>(field: &F) -> Runs {
+    fn for_field<F: Field, C: Ranked>(field: &F) -> Runs {
         Runs {
             batch: Batch::for_field(field),
             len: 0,
+            raw: if C::TAKES_RAW { field.raw_map() } else { None },
         }
     }
 
@@ -542,6 +574,12 @@ impl Runs {
         if n > 0 {
             let b = &mut self.batch;
             let m = padded(&mut b.ts, n, b.lanes);
+            if let Some(map) = &self.raw {
+                let (ts, values) = (&b.ts[..m], &mut b.values[..m]);
+                field.raw_values_along(ray.o, ray.d, ts, values, &mut b.cache);
+                e.take_raw_batch(map, &b.values[..n]);
+                return;
+            }
             field.values_along(ray.o, ray.d, &b.ts[..m], &mut b.values[..m], &mut b.cache);
             // the extremum's consumers never stop a ray (nor use the indices)
             let _ = e.take_batch(0, &b.ts[..n], &b.values[..n]);
@@ -775,6 +813,48 @@ mod tests {
         }
     }
 
+    /// `Extremum::take_raw_batch` of raw values gives the bits of `take` of their
+    /// mapped values in order, for maxima and minima, windows that clamp raw
+    /// values at either end, and running extrema of either sign of zero.
+    #[test]
+    fn extremum_of_raw_values_is_the_bits_of_their_samples_in_order() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let maps = [
+            Normalize::new(0.0, 255.0),
+            Normalize::new(-20.0, 300.0),
+            Normalize::new(30.0, 200.0),
+        ];
+        let ts = [0.0; 64];
+        for map in maps {
+            for _ in 0..500 {
+                let n = 1 + (next() % 64) as usize;
+                // interpolated bytes, some below and above the window
+                let raws: Vec<f32> = (0..n)
+                    .map(|_| (next() % 65536) as f32 / 255.0 - 0.5)
+                    .collect();
+                let mapped: Vec<f32> = raws.iter().map(|&r| map.apply(f64::from(r))).collect();
+                for start in [f32::NEG_INFINITY, f32::INFINITY, 0.0, -0.0, 0.5, 1.0] {
+                    let mut raw = Extremum::<true> { best: start };
+                    let mut each = Extremum::<true> { best: start };
+                    raw.take_raw_batch(&map, &raws);
+                    assert!(take_each(&mut each, 0, &ts[..n], &mapped).is_continue());
+                    assert_eq!(raw.best.to_bits(), each.best.to_bits(), "max, {start}");
+                    let mut raw = Extremum::<false> { best: start };
+                    let mut each = Extremum::<false> { best: start };
+                    raw.take_raw_batch(&map, &raws);
+                    assert!(take_each(&mut each, 0, &ts[..n], &mapped).is_continue());
+                    assert_eq!(raw.best.to_bits(), each.best.to_bits(), "min, {start}");
+                }
+            }
+        }
+    }
+
     /// `Runs::flush` pads a tail of two or more samples to a multiple of the
     /// field's lanes with the last position, and hands the consumer only the
     /// samples it was given: the maximum is that of those samples.
@@ -785,7 +865,7 @@ mod tests {
         for lanes in [1, 4, 8] {
             for n in 1..BATCH {
                 let field = Lanes::new(lanes);
-                let mut runs = Runs::for_field(&field);
+                let mut runs = Runs::for_field::<_, Extremum<true>>(&field);
                 let mut e = Extremum::<true> {
                     best: f32::NEG_INFINITY,
                 };

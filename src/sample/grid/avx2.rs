@@ -115,12 +115,13 @@ impl<T: Voxel> Grid<'_, T> {
 
 impl<T: Voxel> Grid<'_, T> {
     /// The trilinear samples at `o + d t` (index space) for each `t` of `ts`, into
-    /// `out` (as long as `ts`): the bits of [`Grid::trilinear`] at each position.
+    /// `out` (as long as `ts`): the bits of [`Grid::trilinear`] at each position
+    /// (with `RAW`, on a grid of raw bytes, those of [`Grid::raw_along`]).
     ///
     /// # Safety
     /// The machine has AVX2 and `self.gather` is `Some` ([`Gather::for_grid`]).
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn trilinear_avx2(
+    pub(super) unsafe fn trilinear_avx2<const RAW: bool>(
         &self,
         o: [f64; 3],
         d: [f64; 3],
@@ -173,14 +174,19 @@ impl<T: Voxel> Grid<'_, T> {
                 }
                 Gather::Bits8Raw => {
                     let c = each_row!(self.row_bytes, _mm256_add_epi64, base, rows);
-                    normalise(&self.norm, lerps(c, fx, fy, fz))
+                    let v = lerps(c, fx, fy, fz);
+                    if RAW {
+                        v
+                    } else {
+                        normalise(&self.norm, v)
+                    }
                 }
             };
             _mm_storeu_ps(out.as_mut_ptr().add(4 * g), sample);
         }
         for k in 4 * groups..ts.len() {
             let t = ts[k];
-            out[k] = self.trilinear([0, 1, 2].map(|a| o[a] + d[a] * t));
+            out[k] = self.single::<RAW>([0, 1, 2].map(|a| o[a] + d[a] * t));
         }
     }
 
@@ -536,7 +542,7 @@ mod tests {
                 if g.gather.is_some() {
                     let mut out = vec![0.0f32; count];
                     // SAFETY: the machine has AVX2 (`gather` is set)
-                    unsafe { g.trilinear_avx2(o, d, &ts, &mut out) };
+                    unsafe { g.trilinear_avx2::<false>(o, d, &ts, &mut out) };
                     outs.push(out);
                     paths[0] += 1;
                     if super::super::avx512::available() {
@@ -546,18 +552,48 @@ mod tests {
                             let g = Grid { row_gathers, ..g };
                             let mut out = vec![0.0f32; count];
                             // SAFETY: and AVX-512
-                            unsafe { g.trilinear_avx512(o, d, &ts, &mut out) };
+                            unsafe { g.trilinear_avx512::<false>(o, d, &ts, &mut out) };
                             outs.push(out);
                             paths[1] += 1;
                         }
                     }
                 }
+                // and for raw bytes, the values before their normalisation
+                // (`Grid::raw_along`), through the dispatching call and each path
+                let mut raws = Vec::new();
+                if read == Read::Raw {
+                    let mut out = vec![0.0f32; count];
+                    g.raw_along(o, d, &ts, &mut out, &mut CellCache::default());
+                    raws.push(out);
+                    if g.gather.is_some() {
+                        let mut out = vec![0.0f32; count];
+                        // SAFETY: as above
+                        unsafe { g.trilinear_avx2::<true>(o, d, &ts, &mut out) };
+                        raws.push(out);
+                        if super::super::avx512::available() {
+                            for row_gathers in [false, true] {
+                                let g = Grid { row_gathers, ..g };
+                                let mut out = vec![0.0f32; count];
+                                // SAFETY: as above
+                                unsafe { g.trilinear_avx512::<true>(o, d, &ts, &mut out) };
+                                raws.push(out);
+                            }
+                        }
+                    }
+                }
                 for (k, &t) in ts.iter().enumerate() {
                     let p = [0, 1, 2].map(|a| o[a] + d[a] * t);
+                    for out in &raws {
+                        let raw = reference.trilinear_scalar::<true>(p);
+                        assert_eq!(out[k].to_bits(), raw.to_bits(), "raw {n:?} {p:?}");
+                        let sample = norm.apply(f64::from(raw));
+                        assert_eq!(sample.to_bits(), g.trilinear(p).to_bits(), "{p:?}");
+                    }
                     let bits = if read == Read::Raw {
                         // and the interpolant of the normalised voxels, up to rounding
                         // (the windows of raw bytes cover every voxel)
-                        let (raw, normalised) = (reference.trilinear_scalar(p), plain.trilinear(p));
+                        let (raw, normalised) =
+                            (reference.trilinear_scalar::<false>(p), plain.trilinear(p));
                         assert!((raw - normalised).abs() <= 4e-7, "{raw} {normalised}");
                         raw.to_bits()
                     } else {
@@ -664,11 +700,29 @@ mod tests {
                 let p = [i % 4, i / 4 % 3, i / 12].map(|x| x as f64);
                 assert_eq!(raw.trilinear(p).to_bits(), g.at(i).to_bits(), "{p:?}");
                 assert_eq!(
-                    raw.trilinear_scalar(p).to_bits(),
+                    raw.trilinear_scalar::<false>(p).to_bits(),
                     g.at(i).to_bits(),
                     "{p:?}"
                 );
             }
+        }
+    }
+
+    /// Raw values map to the samples only through a window that increases (a
+    /// decreasing one would turn the largest raw value into the smallest sample).
+    #[test]
+    fn raw_values_map_to_samples_only_through_an_increasing_window() {
+        let v = [1u8, 2, 3, 4];
+        for (norm, mapped) in [
+            (Normalize::new(0.0, 255.0), true),
+            (Normalize::new(-256.0, 510.0), true),
+            (Normalize::new(255.0, 0.0), false),
+        ] {
+            let lut = normalisation_table::<u8>(norm);
+            let g = Grid::new(Voxels::from_slice(&v), [4, 1, 1], norm, &lut);
+            assert!(g.raw_map().is_none(), "not a grid of raw bytes");
+            let raw = g.with_raw_bytes().raw_map();
+            assert_eq!(raw.is_some(), mapped, "{:?}", norm.lo_scale());
         }
     }
 

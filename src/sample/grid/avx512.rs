@@ -69,13 +69,14 @@ impl<T: Voxel> Grid<'_, T> {
     /// The trilinear samples at `o + d t` (index space) for each `t` of `ts`, into
     /// `out` (as long as `ts`), eight at a time: the bits of [`Grid::trilinear`] at
     /// each position. The last `ts.len() % 8` samples go through
-    /// [`Grid::trilinear_avx2`].
+    /// [`Grid::trilinear_avx2`]. With `RAW`, on a grid of raw bytes, the bits of
+    /// [`Grid::raw_along`].
     ///
     /// # Safety
     /// The machine has AVX-512F and AVX2 ([`available`]) and `self.gather` is
     /// `Some`.
     #[target_feature(enable = "avx2,avx512f")]
-    pub(super) unsafe fn trilinear_avx512(
+    pub(super) unsafe fn trilinear_avx512<const RAW: bool>(
         &self,
         o: [f64; 3],
         d: [f64; 3],
@@ -122,15 +123,15 @@ impl<T: Voxel> Grid<'_, T> {
                 i + self.sx * j + self.sxy * k >= 2
             };
             if inside {
-                self.groups_avx512::<false>(&c, &ts[..rest], &mut out[..rest], from_two);
+                self.groups_avx512::<false, RAW>(&c, &ts[..rest], &mut out[..rest], from_two);
             } else {
-                self.groups_avx512::<true>(&c, &ts[..rest], &mut out[..rest], from_two);
+                self.groups_avx512::<true, RAW>(&c, &ts[..rest], &mut out[..rest], from_two);
             }
         }
         // (a call whose length is a multiple of eight, as every call of a MIP along
         // an axis is, has no tail: the four-lane path would only set up its lanes)
         if rest < ts.len() {
-            self.trilinear_avx2(o, d, &ts[rest..], &mut out[rest..]);
+            self.trilinear_avx2::<RAW>(o, d, &ts[rest..], &mut out[rest..]);
         }
     }
 
@@ -138,10 +139,11 @@ impl<T: Voxel> Grid<'_, T> {
     /// 8), the positions clamped to the grid unless `CLAMP` is false (the caller
     /// has found every position inside the grid's cells, where the clamps change
     /// nothing); `from_two`: every position's cell starts at flat index 2 or later,
-    /// and gathers pay (the caller's, for [`Grid::rows_bytes_gathered`]).
+    /// and gathers pay (the caller's, for [`Grid::rows_bytes_gathered`]); `RAW`:
+    /// raw bytes left as interpolated ([`Grid::raw_along`]).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
-    unsafe fn groups_avx512<const CLAMP: bool>(
+    unsafe fn groups_avx512<const CLAMP: bool, const RAW: bool>(
         &self,
         c: &LaneConstants,
         ts: &[f64],
@@ -192,14 +194,26 @@ impl<T: Voxel> Grid<'_, T> {
                 }
                 Gather::Bits8Raw if from_two => {
                     let corners = self.rows_bytes_gathered(base, c.rows);
-                    normalise(&self.norm, lerps(corners, fx, fy, fz))
+                    self.raw_or_normalised::<RAW>(lerps(corners, fx, fy, fz))
                 }
                 Gather::Bits8Raw => {
                     let corners = self.rows_bytes_x8(base, c.rows);
-                    normalise(&self.norm, lerps(corners, fx, fy, fz))
+                    self.raw_or_normalised::<RAW>(lerps(corners, fx, fy, fz))
                 }
             };
             _mm256_storeu_ps(out.as_mut_ptr().add(at), sample);
+        }
+    }
+
+    /// Eight lanes of interpolated raw bytes as they are (`RAW`,
+    /// [`Grid::raw_along`]) or normalised.
+    #[target_feature(enable = "avx2,avx512f")]
+    #[inline]
+    unsafe fn raw_or_normalised<const RAW: bool>(&self, v: __m256) -> __m256 {
+        if RAW {
+            v
+        } else {
+            normalise(&self.norm, v)
         }
     }
 
