@@ -133,7 +133,12 @@ impl<T: Voxel> Field for Trilinear<'_, T> {
 
     #[inline(always)]
     fn raw_map(&self) -> Option<Normalize> {
-        self.grid.raw_map()
+        // (a constant `None` for the types that are never read as raw bytes)
+        if const { matches!(T::TYPE, crate::volume::ScalarType::Uint8) } {
+            self.grid.raw_map()
+        } else {
+            None
+        }
     }
 
     #[inline(always)]

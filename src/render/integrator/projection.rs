@@ -465,7 +465,7 @@ fn brightest_first<F: Field, C: Ranked>(
         }
     };
     let mut taken = 0u64;
-    let mut runs = Runs::for_field::<F, C>(field);
+    let mut runs = Runs::for_field(field);
     // the span last sampled and its end: a span sampled right after the one before
     // it starts where that one ended
     let mut last = (usize::MAX, 0);
@@ -529,19 +529,15 @@ const FLUSH_AT: usize = 32;
 struct Runs {
     batch: Batch,
     len: usize,
-    /// The field's raw values are sampled and handed over, and this map turns them
-    /// into its samples ([`Ranked::TAKES_RAW`], [`Field::raw_map`]).
-    raw: Option<Normalize>,
 }
 
 impl Runs {
-    /// Runs of samples of `field` for consumers of type `C`.
+    /// Runs of samples of `field`.
     #[inline(always)]
-    fn for_field<F: Field, C: Ranked>(field: &F) -> Runs {
+    fn for_field<F: Field>(field: &F) -> Runs {
         Runs {
             batch: Batch::for_field(field),
             len: 0,
-            raw: if C::TAKES_RAW { field.raw_map() } else { None },
         }
     }
 
@@ -574,7 +570,11 @@ impl Runs {
         if n > 0 {
             let b = &mut self.batch;
             let m = padded(&mut b.ts, n, b.lanes);
-            if let Some(map) = &self.raw {
+            // raw values where the consumer takes them and the field has them (a
+            // constant `None` for the fields that never do, asked again here so
+            // that their flush keeps no test of it)
+            let raw = if C::TAKES_RAW { field.raw_map() } else { None };
+            if let Some(map) = &raw {
                 let (ts, values) = (&b.ts[..m], &mut b.values[..m]);
                 field.raw_values_along(ray.o, ray.d, ts, values, &mut b.cache);
                 e.take_raw_batch(map, &b.values[..n]);
@@ -865,7 +865,7 @@ mod tests {
         for lanes in [1, 4, 8] {
             for n in 1..BATCH {
                 let field = Lanes::new(lanes);
-                let mut runs = Runs::for_field::<_, Extremum<true>>(&field);
+                let mut runs = Runs::for_field(&field);
                 let mut e = Extremum::<true> {
                     best: f32::NEG_INFINITY,
                 };
