@@ -4,12 +4,17 @@
 #   bench/peers/before_after.sh BEFORE_BINARY AFTER_BINARY [DATA_DIR] [REPS]
 # DATA_DIR is where run_all.sh wrote the volume (default /work/peers-data); REPS default 2.
 # Prints "view mode before|after seconds" lines.
+# Each run writes into an empty folder, and the order of the two builds alternates from one
+# repetition to the next: with one output folder for every run and "before" always first,
+# two copies of the same binary measured 0.85-0.89x (iso-surface) and 0.96-0.98x (composite)
+# "after" (2026-12-06, twenty-fourth round of README.md).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 before=$1; after=$2; data=${3:-/work/peers-data}; reps=${4:-2}
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
 secs() {  # binary scene frames -> wall seconds
   local t0 t1
+  rm -rf "$work/out"
   t0=$(date +%s.%N)
   "$1" render "$2" --out "$work/out" --quiet --no-view-reuse --threads 2 --frames "0..$3"
   t1=$(date +%s.%N)
@@ -20,10 +25,11 @@ for r in $(seq "$reps"); do
     for mode in mip xray composite iso; do
       scene="$work/${view}_${mode}.toml"
       sed "s#/work/peers-data#$data#" "$here/scenes/${view}_${mode}.toml" > "$scene"
-      for which in before after; do
+      order="before after"; [ $((r % 2)) = 0 ] && order="after before"
+      for which in $order; do
         bin=$before; [ "$which" = after ] && bin=$after
         t1=$(secs "$bin" "$scene" 1); t5=$(secs "$bin" "$scene" 5)
-        echo "$view $mode $which $(python3 -c "print(round(($t5 - $t1) / 4, 3))")"
+        echo "$view $mode $which $(python3 -c "print(round(($t5 - $t1) / 4, 4))")"
       done
     done
   done
