@@ -361,22 +361,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
         self.cached::<false>(p, cache)
     }
 
-    /// [`Grid::trilinear_cached`] at `o + d t` for each `t` of `ts`, into `out` (as
-    /// long as `ts`), four samples at a time where the machine has AVX2 (the same
-    /// bits: `avx2.rs`).
-    #[inline(always)]
-    pub fn trilinear_along(
-        &self,
-        o: [f64; 3],
-        d: [f64; 3],
-        ts: &[f64],
-        out: &mut [f32],
-        cache: &mut CellCache,
-    ) {
-        self.along::<false>(o, d, ts, out, cache)
-    }
-
-    /// The map from the values of [`Grid::raw_along`] to the samples, where this
+    /// The map from the raw values of [`Grid::trilinear_along`] to the samples, where this
     /// grid has that path: a grid of raw bytes ([`Grid::with_raw_bytes`]) whose
     /// window increases, so that the map, [`Normalize::apply`], does not decrease
     /// (its subtraction, multiplication by a positive scale, clamps and rounding to
@@ -387,15 +372,17 @@ impl<'a, T: Voxel> Grid<'a, T> {
         (self.raw_bytes && self.norm.lo_scale().1 > 0.0).then_some(self.norm)
     }
 
-    /// [`Grid::trilinear_along`] without the last step of each sample on a grid of
-    /// raw bytes: the interpolated bytes, not normalised, each of which
-    /// [`Normalize::apply`] by the grid's window turns into the bits
-    /// [`Grid::trilinear_along`] gives there.
+    /// [`Grid::trilinear_cached`] at `o + d t` for each `t` of `ts`, into `out` (as
+    /// long as `ts`), four or eight samples at a time where the machine has AVX2 or
+    /// AVX-512 (the same bits: `avx2.rs`). With `RAW`, on a grid of raw bytes
+    /// ([`Grid::with_raw_bytes`]), each sample without its last step: the
+    /// interpolated bytes, not normalised, which [`Normalize::apply`] by the grid's
+    /// window turns into the bits the samples have ([`Grid::raw_map`]).
     ///
     /// # Panics
-    /// In a debug build, if the grid does not read raw bytes.
+    /// In a debug build, with `RAW` on a grid that does not read raw bytes.
     #[inline(always)]
-    pub fn raw_along(
+    pub fn trilinear_along<const RAW: bool>(
         &self,
         o: [f64; 3],
         d: [f64; 3],
@@ -403,20 +390,10 @@ impl<'a, T: Voxel> Grid<'a, T> {
         out: &mut [f32],
         cache: &mut CellCache,
     ) {
-        debug_assert!(self.raw_bytes, "raw values of a grid of raw bytes only");
-        self.along::<true>(o, d, ts, out, cache)
-    }
-
-    /// [`Grid::trilinear_along`], or with `RAW`, [`Grid::raw_along`].
-    #[inline(always)]
-    fn along<const RAW: bool>(
-        &self,
-        o: [f64; 3],
-        d: [f64; 3],
-        ts: &[f64],
-        out: &mut [f32],
-        cache: &mut CellCache,
-    ) {
+        debug_assert!(
+            !RAW || self.raw_bytes,
+            "raw values of a grid of raw bytes only"
+        );
         // the vector paths exist for the types they read (a constant per `T`,
         // so the other types do not compile them)
         #[cfg(target_arch = "x86_64")]
@@ -495,7 +472,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
 
     /// A sample from its interpolated value: clamped to [0, 1] as `f32::clamp`
     /// does, or, for a grid of raw bytes, normalised ([`Normalize::apply`]); with
-    /// `RAW` (a grid of raw bytes, [`Grid::raw_along`]), left as it is.
+    /// `RAW` (a grid of raw bytes, [`Grid::trilinear_along`]), left as it is.
     #[inline(always)]
     fn finish<const RAW: bool>(&self, v: f32) -> f32 {
         if RAW {

@@ -123,7 +123,7 @@ impl<T: Voxel> Field for Trilinear<'_, T> {
     #[inline(always)]
     fn values_along(&self, o: DVec3, d: DVec3, ts: &[f64], out: &mut [f32], cache: &mut CellCache) {
         self.grid
-            .trilinear_along(o.to_array(), d.to_array(), ts, out, cache)
+            .trilinear_along::<false>(o.to_array(), d.to_array(), ts, out, cache)
     }
 
     #[inline(always)]
@@ -153,7 +153,7 @@ impl<T: Voxel> Field for Trilinear<'_, T> {
         // (only 8-bit grids read raw bytes: the other types do not compile the path)
         if const { matches!(T::TYPE, crate::volume::ScalarType::Uint8) } {
             self.grid
-                .raw_along(o.to_array(), d.to_array(), ts, out, cache)
+                .trilinear_along::<true>(o.to_array(), d.to_array(), ts, out, cache)
         } else {
             self.values_along(o, d, ts, out, cache)
         }

@@ -135,12 +135,12 @@ impl<'a> Trapezoid<'a> {
     fn add_interior(&mut self, from: usize, values: &[f32]) {
         let head = from.wrapping_neg() % LANES;
         let (head, rest) = values.split_at(head.min(values.len()));
+        let mut sums = self.interior;
         for (k, &f) in head.iter().enumerate() {
-            self.interior[(from + k) % LANES] += f64::from(f);
+            sums[(from + k) % LANES] += f64::from(f);
         }
         let chunks = rest.chunks_exact(LANES);
         let tail = chunks.remainder();
-        let mut sums = self.interior;
         for chunk in chunks {
             for (s, &f) in sums.iter_mut().zip(chunk) {
                 *s += f64::from(f);

@@ -116,7 +116,8 @@ impl<T: Voxel> Grid<'_, T> {
 impl<T: Voxel> Grid<'_, T> {
     /// The trilinear samples at `o + d t` (index space) for each `t` of `ts`, into
     /// `out` (as long as `ts`): the bits of [`Grid::trilinear`] at each position
-    /// (with `RAW`, on a grid of raw bytes, those of [`Grid::raw_along`]).
+    /// (with `RAW`, on a grid of raw bytes, the raw values of
+    /// [`Grid::trilinear_along`]).
     ///
     /// # Safety
     /// The machine has AVX2 and `self.gather` is `Some` ([`Gather::for_grid`]).
@@ -538,7 +539,7 @@ mod tests {
                 let ts: Vec<f64> = (0..count).map(|k| t0 + 0.37 * k as f64).collect();
                 // the dispatching call, and each vector path this machine has
                 let mut outs = vec![vec![0.0f32; count]];
-                g.trilinear_along(o, d, &ts, &mut outs[0], &mut CellCache::default());
+                g.trilinear_along::<false>(o, d, &ts, &mut outs[0], &mut CellCache::default());
                 if g.gather.is_some() {
                     let mut out = vec![0.0f32; count];
                     // SAFETY: the machine has AVX2 (`gather` is set)
@@ -559,11 +560,11 @@ mod tests {
                     }
                 }
                 // and for raw bytes, the values before their normalisation
-                // (`Grid::raw_along`), through the dispatching call and each path
+                // (`Grid::trilinear_along::<true>`), through the dispatching call and each path
                 let mut raws = Vec::new();
                 if read == Read::Raw {
                     let mut out = vec![0.0f32; count];
-                    g.raw_along(o, d, &ts, &mut out, &mut CellCache::default());
+                    g.trilinear_along::<true>(o, d, &ts, &mut out, &mut CellCache::default());
                     raws.push(out);
                     if g.gather.is_some() {
                         let mut out = vec![0.0f32; count];

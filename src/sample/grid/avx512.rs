@@ -70,7 +70,7 @@ impl<T: Voxel> Grid<'_, T> {
     /// `out` (as long as `ts`), eight at a time: the bits of [`Grid::trilinear`] at
     /// each position. The last `ts.len() % 8` samples go through
     /// [`Grid::trilinear_avx2`]. With `RAW`, on a grid of raw bytes, the bits of
-    /// [`Grid::raw_along`].
+    /// raw values of [`Grid::trilinear_along`].
     ///
     /// # Safety
     /// The machine has AVX-512F and AVX2 ([`available`]) and `self.gather` is
@@ -140,7 +140,7 @@ impl<T: Voxel> Grid<'_, T> {
     /// has found every position inside the grid's cells, where the clamps change
     /// nothing); `from_two`: every position's cell starts at flat index 2 or later,
     /// and gathers pay (the caller's, for [`Grid::rows_bytes_gathered`]); `RAW`:
-    /// raw bytes left as interpolated ([`Grid::raw_along`]).
+    /// raw bytes left as interpolated ([`Grid::trilinear_along`]).
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
     unsafe fn groups_avx512<const CLAMP: bool, const RAW: bool>(
@@ -206,7 +206,7 @@ impl<T: Voxel> Grid<'_, T> {
     }
 
     /// Eight lanes of interpolated raw bytes as they are (`RAW`,
-    /// [`Grid::raw_along`]) or normalised.
+    /// [`Grid::trilinear_along`]) or normalised.
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
     unsafe fn raw_or_normalised<const RAW: bool>(&self, v: __m256) -> __m256 {
