@@ -76,6 +76,37 @@ impl Gather {
     }
 }
 
+/// The code of a vector path's loop ([`each_storage`]): one per storage kind
+/// ([`Gather`]), with raw bytes read by gathers apart (the eight-lane path where
+/// gathers pay).
+pub(super) struct Loop;
+
+impl Loop {
+    pub(super) const F32: u8 = 0;
+    pub(super) const F32_UNIT: u8 = 1;
+    pub(super) const F32_BARE: u8 = 2;
+    pub(super) const BITS8: u8 = 3;
+    pub(super) const PAIRS: u8 = 4;
+    pub(super) const RAW: u8 = 5;
+    pub(super) const RAW_GATHERED: u8 = 6;
+    pub(super) const BITS16: u8 = 7;
+
+    /// The loop of storage `kind`, its raw bytes read by gathers if `gathered`.
+    #[inline(always)]
+    pub(super) fn of(kind: Gather, gathered: bool) -> u8 {
+        match kind {
+            Gather::Float32 => Loop::F32,
+            Gather::Float32Unit => Loop::F32_UNIT,
+            Gather::Float32Bare => Loop::F32_BARE,
+            Gather::Bits8 => Loop::BITS8,
+            Gather::Bits8Pairs => Loop::PAIRS,
+            Gather::Bits8Raw if gathered => Loop::RAW_GATHERED,
+            Gather::Bits8Raw => Loop::RAW,
+            Gather::Bits16 => Loop::BITS16,
+        }
+    }
+}
+
 /// How the paths that read a row's two voxels as one 64-bit word get that word and
 /// normalise its voxels (their const parameter): two float32 voxels normalised in
 /// f64 lanes ([`Gather::Float32`]), by clamping ([`Gather::Float32Unit`]) or not at
@@ -131,10 +162,33 @@ impl<T: Voxel> Grid<'_, T> {
     ) {
         debug_assert_eq!(ts.len(), out.len());
         let c = self.lane_constants(o, d);
-        let kind = c.kind;
-        let (axes, [sx, sxy], rows) = broadcast_lanes!(&c, _mm256_set1_epi64x);
         let groups = ts.len() / 4;
-        for g in 0..groups {
+        let (ts4, out4) = (&ts[..4 * groups], &mut out[..4 * groups]);
+        macro_rules! run {
+            ($k:expr) => {
+                self.groups_avx2::<RAW, { $k }>(&c, ts4, out4)
+            };
+        }
+        each_storage!(T, RAW, c.kind, false, run);
+        for k in 4 * groups..ts.len() {
+            let t = ts[k];
+            out[k] = self.single::<RAW>([0, 1, 2].map(|a| o[a] + d[a] * t));
+        }
+    }
+
+    /// [`Grid::trilinear_avx2`] of whole groups of four (`ts.len()` a multiple of
+    /// 4), with the loop of storage `K` ([`Loop`]).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn groups_avx2<const RAW: bool, const K: u8>(
+        &self,
+        c: &LaneConstants,
+        ts: &[f64],
+        out: &mut [f32],
+    ) {
+        debug_assert!(ts.len().is_multiple_of(4) && ts.len() == out.len());
+        let (axes, [sx, sxy], rows) = broadcast_lanes!(c, _mm256_set1_epi64x);
+        for g in 0..ts.len() / 4 {
             let t = _mm256_loadu_pd(ts.as_ptr().add(4 * g));
             let (ix, fx) = locate(&axes[0], t);
             let (iy, fy) = locate(&axes[1], t);
@@ -148,32 +202,33 @@ impl<T: Voxel> Grid<'_, T> {
                 ),
                 _mm256_mul_epu32(_mm256_cvtepi32_epi64(iz), sxy),
             );
-            let sample = match kind {
-                Gather::Float32 => {
+            let sample = match K {
+                Loop::F32 => {
                     let c = each_row!(self.row_words::<ROW_GENERAL>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
-                Gather::Float32Unit => {
+                Loop::F32_UNIT => {
                     let c = each_row!(self.row_words::<ROW_UNIT>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
-                Gather::Float32Bare => {
+                Loop::F32_BARE => {
                     let c = each_row!(self.row_words::<ROW_BARE>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
-                Gather::Bits16 => {
+                Loop::BITS16 => {
                     let c = each_row!(self.row_bits::<2>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
-                Gather::Bits8 => {
+                Loop::BITS8 => {
                     let c = each_row!(self.row_bits::<1>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
-                Gather::Bits8Pairs => {
+                Loop::PAIRS => {
                     let c = each_row!(self.row_words::<ROW_PAIRS>, _mm256_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
-                Gather::Bits8Raw => {
+                _ => {
+                    // raw bytes (the four-lane path reads them with scalar loads)
                     let c = each_row!(self.row_bytes, _mm256_add_epi64, base, rows);
                     let v = lerps(c, fx, fy, fz);
                     if RAW {
@@ -184,10 +239,6 @@ impl<T: Voxel> Grid<'_, T> {
                 }
             };
             _mm_storeu_ps(out.as_mut_ptr().add(4 * g), sample);
-        }
-        for k in 4 * groups..ts.len() {
-            let t = ts[k];
-            out[k] = self.single::<RAW>([0, 1, 2].map(|a| o[a] + d[a] * t));
         }
     }
 

@@ -9,7 +9,9 @@
 
 use std::arch::x86_64::*;
 
-use super::avx2::{f32_pair, Gather, LaneConstants, ROW_BARE, ROW_GENERAL, ROW_PAIRS, ROW_UNIT};
+use super::avx2::{
+    f32_pair, Gather, LaneConstants, Loop, ROW_BARE, ROW_GENERAL, ROW_PAIRS, ROW_UNIT,
+};
 use super::Grid;
 use crate::sample::Normalize;
 use crate::volume::Voxel;
@@ -140,7 +142,9 @@ impl<T: Voxel> Grid<'_, T> {
     /// has found every position inside the grid's cells, where the clamps change
     /// nothing); `from_two`: every position's cell starts at flat index 2 or later,
     /// and gathers pay (the caller's, for [`Grid::rows_bytes_gathered`]); `RAW`:
-    /// raw bytes left as interpolated ([`Grid::trilinear_along`]).
+    /// raw bytes left as interpolated ([`Grid::trilinear_along`]). The storage kind
+    /// is chosen once, each kind's loop its own ([`Grid::groups_of`]), and only the
+    /// kinds of `T`'s storage have one.
     #[target_feature(enable = "avx2,avx512f")]
     #[inline]
     unsafe fn groups_avx512<const CLAMP: bool, const RAW: bool>(
@@ -150,8 +154,24 @@ impl<T: Voxel> Grid<'_, T> {
         out: &mut [f32],
         from_two: bool,
     ) {
+        macro_rules! run {
+            ($k:expr) => {
+                self.groups_of::<CLAMP, RAW, { $k }>(c, ts, out)
+            };
+        }
+        each_storage!(T, RAW, c.kind, from_two, run);
+    }
+
+    /// [`Grid::groups_avx512`] with the loop of storage `K` ([`Loop`]).
+    #[target_feature(enable = "avx2,avx512f")]
+    #[inline]
+    unsafe fn groups_of<const CLAMP: bool, const RAW: bool, const K: u8>(
+        &self,
+        c: &LaneConstants,
+        ts: &[f64],
+        out: &mut [f32],
+    ) {
         debug_assert!(ts.len().is_multiple_of(8) && ts.len() == out.len());
-        let kind = c.kind;
         let (axes, [sx, sxy], rows) = broadcast_lanes!(c, _mm512_set1_epi64);
         for g in 0..ts.len() / 8 {
             let at = 8 * g;
@@ -167,36 +187,36 @@ impl<T: Voxel> Grid<'_, T> {
                 ),
                 _mm512_mul_epu32(_mm512_cvtepi32_epi64(iz), sxy),
             );
-            let sample = match kind {
-                Gather::Float32 => {
+            let sample = match K {
+                Loop::F32 => {
                     let corners = self.rows_words_x8::<ROW_GENERAL>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
-                Gather::Float32Unit => {
+                Loop::F32_UNIT => {
                     let corners = self.rows_words_x8::<ROW_UNIT>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
-                Gather::Float32Bare => {
+                Loop::F32_BARE => {
                     let corners = self.rows_words_x8::<ROW_BARE>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
-                Gather::Bits16 => {
+                Loop::BITS16 => {
                     let c = each_row!(self.row_bits_x8::<2>, _mm512_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
-                Gather::Bits8 => {
+                Loop::BITS8 => {
                     let c = each_row!(self.row_bits_x8::<1>, _mm512_add_epi64, base, rows);
                     interpolate(c, fx, fy, fz)
                 }
-                Gather::Bits8Pairs => {
+                Loop::PAIRS => {
                     let corners = self.rows_words_x8::<ROW_PAIRS>(base, c.rows);
                     interpolate(corners, fx, fy, fz)
                 }
-                Gather::Bits8Raw if from_two => {
+                Loop::RAW_GATHERED => {
                     let corners = self.rows_bytes_gathered(base, c.rows);
                     self.raw_or_normalised::<RAW>(lerps(corners, fx, fy, fz))
                 }
-                Gather::Bits8Raw => {
+                _ => {
                     let corners = self.rows_bytes_x8(base, c.rows);
                     self.raw_or_normalised::<RAW>(lerps(corners, fx, fy, fz))
                 }
