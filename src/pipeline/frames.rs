@@ -12,7 +12,7 @@ use super::{CacheKey, Emit, EyeView, FrameViews, Rendered, Summary};
 use crate::error::Error;
 use crate::output::display::Window;
 use crate::plan::Plan;
-use crate::render::{Film, ImageKind, RenderView, Resources};
+use crate::render::{Film, ImageKind, RenderView, Resources, View};
 use crate::sample::Normalize;
 use crate::scene::{Format, Scene};
 use crate::views::Eye;
@@ -25,6 +25,11 @@ type Runtimes<'a> = HashMap<usize, Box<dyn RenderView + 'a>>;
 /// The files written for each (pass, frame).
 type Written = Vec<((usize, usize), Vec<PathBuf>)>;
 
+/// Renders the frames `jobs` ((pass, frame) pairs, in order) of `scene`, as
+/// `plan` says, and hands each to `emit`'s sink: the zoom fitted to the voxels
+/// where the scene asks ([`fitted`]), the grey windows found ([`grey_windows`]),
+/// then the frames in batches ([`Schedule`]), each batch's distinct views
+/// rendered on the workers while a thread of its own writes the batch before.
 pub(super) fn render_passes(
     scene: &Scene,
     plan: &Plan,
@@ -38,32 +43,8 @@ pub(super) fn render_passes(
         prepare,
         sink,
     } = *emit;
-    // zoom = "fit": the zoom comes from the voxels, before anything is written
-    let (fitted_scene, fitted_plan, fit_note);
-    let (scene, plan) = if scene.camera.fit.is_some() {
-        let t = super::fit::threshold(scene);
-        let Some(z) = super::fit::zoom(scene, plan, volume, norm) else {
-            return Err(Error::Plan {
-                scene: scene.path.clone(),
-                message: format!(
-                    "[camera] zoom = \"fit\": no voxel of {} is at or above the fit threshold {t} (normalised): set `fit_threshold` lower, or give `zoom` a number",
-                    volume.header.source
-                ),
-            });
-        };
-        let mut s = scene.clone();
-        s.camera.zoom = z;
-        let mut p = plan.clone();
-        p.views = crate::views::Views::new(&s, plan.views.share);
-        fit_note = Some(format!(
-            "zoom = \"fit\": {z:.4}, framing the voxels at or above {t:.4} (normalised)"
-        ));
-        (fitted_scene, fitted_plan) = (s, p);
-        (&fitted_scene, &fitted_plan)
-    } else {
-        fit_note = None;
-        (scene, plan)
-    };
+    let fit = fitted(scene, plan, volume, norm)?;
+    let (scene, plan) = fit.as_ref().map_or((scene, plan), |f| (&f.scene, &f.plan));
     let header = &volume.header;
     let index_from_world =
         header
@@ -74,7 +55,6 @@ pub(super) fn render_passes(
                 message: format!("the volume {} has degenerate axes", header.source),
             })?;
     let frame = plan.frame;
-    let sphere = plan.sphere;
     let resources = Resources::build(
         &volume.data,
         header.sizes,
@@ -84,116 +64,24 @@ pub(super) fn render_passes(
         index_from_world,
         &plan.passes,
     );
+    let windows = grey_windows(scene, plan, &resources);
+
+    prepare()?;
+    let views = &plan.views;
+    let schedule = Schedule::new(plan, jobs);
     // One runtime per variant (the passes, or their keyframed values per frame),
     // prepared when a batch first needs it and dropped after the last batch that
     // does: a keyframed sequence holds a few variants' tables at a time, not one
     // per frame.
     let mut runtimes: Runtimes = HashMap::new();
-    let views = &plan.views;
-    let view_of = |key: ViewKey, w: usize, h: usize| views.view(&scene.camera, key, w, h, sphere);
-
-    // Grey windows: fixed, or from a preview of every distinct view of the whole
-    // orbit (whatever frames this run renders, so that all runs agree).
-    let windows: Vec<Option<Window>> = scene
-        .passes
-        .iter()
-        .zip(&plan.passes)
-        .zip(&plan.auto_window)
-        .enumerate()
-        .map(|(p, ((pass, rp), &auto))| {
-            if rp.kind() == ImageKind::Rgba || scene.image.format == Format::Nrrd {
-                None
-            } else if let Some([lo, hi]) = pass.window {
-                Some(Window { lo, hi })
-            } else {
-                debug_assert!(auto);
-                let (w, h) = plan.preview;
-                // every distinct (variant, view) of the whole orbit
-                let orbit_views: BTreeSet<(usize, ViewKey)> = (0..scene.orbit.frames)
-                    .flat_map(|k| {
-                        let v = plan.variant(p, k);
-                        views.eyes().iter().map(move |&e| (v, views.key(k, e)))
-                    })
-                    .collect();
-                // one variant at a time (previews are of intensity passes: no tables)
-                let mut films: Vec<Film> = Vec::with_capacity(orbit_views.len());
-                let variants: BTreeSet<usize> = orbit_views.iter().map(|&(v, _)| v).collect();
-                for v in variants {
-                    let rt = plan.variants[v].prepare(&resources);
-                    let keys: Vec<ViewKey> = orbit_views
-                        .iter()
-                        .filter(|&&(u, _)| u == v)
-                        .map(|&(_, key)| key)
-                        .collect();
-                    films.par_extend(
-                        keys.par_iter()
-                            .map(|&key| rt.render(&view_of(key, w, h), &frame).0),
-                    );
-                }
-                Some(Window::of_films(&films))
-            }
-        })
-        .collect();
-
-    prepare()?;
-    // Frames in batches: render the batch's views not yet rendered (in parallel),
-    // write its images (in parallel), drop the views no later batch needs.
-    // keyed by the variant the frame renders, so frames with other keyframed
-    // values never share a view
-    let cache_key = |p: usize, k: usize, e: Eye| -> CacheKey {
-        (
-            plan.variant(p, k),
-            views.key(k, e),
-            (!views.share).then_some((k, e)),
-        )
-    };
-    let mut batches: Vec<Vec<(usize, usize)>> = Vec::new();
-    let per_batch = frames_per_batch(rayon::current_num_threads());
-    let mut frames_in_batch = 0;
-    let mut last_frame = None;
-    for &(p, k) in jobs {
-        if last_frame != Some(k) {
-            if frames_in_batch % per_batch == 0 {
-                batches.push(Vec::new());
-            }
-            frames_in_batch += 1;
-            last_frame = Some(k);
-        }
-        batches.last_mut().expect("pushed above").push((p, k));
-    }
-    let mut last_use: HashMap<CacheKey, usize> = HashMap::new();
-    let mut variant_last_use: HashMap<usize, usize> = HashMap::new();
-    for (b, batch) in batches.iter().enumerate() {
-        for &(p, k) in batch {
-            variant_last_use.insert(plan.variant(p, k), b);
-            for &e in views.eyes() {
-                last_use.insert(cache_key(p, k, e), b);
-            }
-        }
-    }
     let mut cache: HashMap<CacheKey, Rendered> = HashMap::new();
     let mut results: Written = Vec::with_capacity(jobs.len());
     let (mut rendered_views, mut samples, mut nominal) = (0usize, 0u64, 0u64);
-    // The views batch `b` needs that no batch before it rendered, each with the
-    // (pass, frame) it is first rendered for.
-    let todo_of = |b: usize, cache: &HashMap<CacheKey, Rendered>| {
-        let mut todo: Vec<(CacheKey, (usize, usize))> = Vec::new();
-        let mut seen = HashSet::new();
-        for &(p, k) in &batches[b] {
-            for &e in views.eyes() {
-                let ck = cache_key(p, k, e);
-                if !cache.contains_key(&ck) && seen.insert(ck) {
-                    todo.push((ck, (p, k)));
-                }
-            }
-        }
-        todo
-    };
     let render = |todo: &[(CacheKey, (usize, usize))], runtimes: &Runtimes<'_>| {
         todo.par_iter()
             .map(|&(ck, first)| {
                 let rt = &runtimes[&ck.0];
-                let view = view_of(ck.1, plan.width, plan.height);
+                let view = view_of(scene, plan, ck.1, (plan.width, plan.height));
                 let t0 = Instant::now();
                 let (film, counts) = rt.render(&view, &frame);
                 let r = Rendered {
@@ -212,7 +100,11 @@ pub(super) fn render_passes(
     let write_one = |&(p, k): &(usize, usize),
                      cache: &HashMap<CacheKey, Rendered>|
      -> Result<((usize, usize), Vec<PathBuf>), Error> {
-        let cks: Vec<CacheKey> = views.eyes().iter().map(|&e| cache_key(p, k, e)).collect();
+        let cks: Vec<CacheKey> = views
+            .eyes()
+            .iter()
+            .map(|&e| schedule.cache_key(p, k, e))
+            .collect();
         let eyes: Vec<EyeView> = views
             .eyes()
             .iter()
@@ -248,10 +140,11 @@ pub(super) fn render_passes(
     };
     // The frames of batch `b`, one after another or on the workers.
     let write = |b: usize, cache: &HashMap<CacheKey, Rendered>, parallel: bool| {
+        let batch = &schedule.batches[b];
         if parallel {
-            batches[b].par_iter().map(|j| write_one(j, cache)).collect()
+            batch.par_iter().map(|j| write_one(j, cache)).collect()
         } else {
-            batches[b]
+            batch
                 .iter()
                 .map(|j| write_one(j, cache))
                 .collect::<Result<Written, Error>>()
@@ -262,9 +155,10 @@ pub(super) fn render_passes(
     // `b - 1`: the writes' encoding and hashing fill the time the workers would
     // wait for each other at the end of a batch, and their waits on the device
     // (the sync before each rename) hold no worker.
-    for b in 0..=batches.len() {
-        let todo = if b < batches.len() {
-            todo_of(b, &cache)
+    let batches = schedule.batches.len();
+    for b in 0..=batches {
+        let todo = if b < batches {
+            schedule.todo(b, &cache)
         } else {
             Vec::new()
         };
@@ -292,8 +186,7 @@ pub(super) fn render_passes(
         };
         results.extend(written?);
         if let Some(w) = b.checked_sub(1) {
-            cache.retain(|ck, _| last_use.get(ck).is_some_and(|&last| last > w));
-            runtimes.retain(|v, _| variant_last_use.get(v).is_some_and(|&last| last > w));
+            schedule.forget_after(w, &mut cache, &mut runtimes);
         }
         rendered_views += fresh.len();
         samples += fresh.iter().map(|(_, r)| r.samples).sum::<u64>();
@@ -309,7 +202,189 @@ pub(super) fn render_passes(
         samples,
         nominal_samples: nominal,
         windows,
-        notes: fit_note.into_iter().collect(),
+        notes: fit.iter().map(|f| f.note.clone()).collect(),
         ..Summary::default()
     })
+}
+
+/// The scene and plan of a run whose zoom is fitted to the voxels, and the note
+/// that says so.
+struct Fitted {
+    scene: Scene,
+    plan: Plan,
+    note: String,
+}
+
+/// `zoom = "fit"`: the scene and plan with the zoom that frames the voxels at or
+/// above the fit threshold, found before anything is written (`None` for a scene
+/// with a zoom of its own).
+fn fitted(
+    scene: &Scene,
+    plan: &Plan,
+    volume: &Volume,
+    norm: Normalize,
+) -> Result<Option<Fitted>, Error> {
+    if scene.camera.fit.is_none() {
+        return Ok(None);
+    }
+    let t = super::fit::threshold(scene);
+    let Some(z) = super::fit::zoom(scene, plan, volume, norm) else {
+        return Err(Error::Plan {
+            scene: scene.path.clone(),
+            message: format!(
+                "[camera] zoom = \"fit\": no voxel of {} is at or above the fit threshold {t} (normalised): set `fit_threshold` lower, or give `zoom` a number",
+                volume.header.source
+            ),
+        });
+    };
+    let mut s = scene.clone();
+    s.camera.zoom = z;
+    let mut p = plan.clone();
+    p.views = crate::views::Views::new(&s, plan.views.share);
+    Ok(Some(Fitted {
+        scene: s,
+        plan: p,
+        note: format!("zoom = \"fit\": {z:.4}, framing the voxels at or above {t:.4} (normalised)"),
+    }))
+}
+
+/// The view of `key` at `size` (width, height).
+fn view_of(scene: &Scene, plan: &Plan, key: ViewKey, (w, h): (usize, usize)) -> View {
+    plan.views.view(&scene.camera, key, w, h, plan.sphere)
+}
+
+/// Each pass's grey window: none for colour images and float NRRDs, the pass's
+/// own, or one found from a preview of every distinct view of the whole orbit
+/// (whatever frames this run renders, so that all runs agree).
+fn grey_windows(scene: &Scene, plan: &Plan, resources: &Resources) -> Vec<Option<Window>> {
+    let views = &plan.views;
+    scene
+        .passes
+        .iter()
+        .zip(&plan.passes)
+        .zip(&plan.auto_window)
+        .enumerate()
+        .map(|(p, ((pass, rp), &auto))| {
+            if rp.kind() == ImageKind::Rgba || scene.image.format == Format::Nrrd {
+                None
+            } else if let Some([lo, hi]) = pass.window {
+                Some(Window { lo, hi })
+            } else {
+                debug_assert!(auto);
+                // every distinct (variant, view) of the whole orbit
+                let orbit_views: BTreeSet<(usize, ViewKey)> = (0..scene.orbit.frames)
+                    .flat_map(|k| {
+                        let v = plan.variant(p, k);
+                        views.eyes().iter().map(move |&e| (v, views.key(k, e)))
+                    })
+                    .collect();
+                // one variant at a time (previews are of intensity passes: no tables)
+                let mut films: Vec<Film> = Vec::with_capacity(orbit_views.len());
+                let variants: BTreeSet<usize> = orbit_views.iter().map(|&(v, _)| v).collect();
+                for v in variants {
+                    let rt = plan.variants[v].prepare(resources);
+                    let keys: Vec<ViewKey> = orbit_views
+                        .iter()
+                        .filter(|&&(u, _)| u == v)
+                        .map(|&(_, key)| key)
+                        .collect();
+                    films.par_extend(keys.par_iter().map(|&key| {
+                        rt.render(&view_of(scene, plan, key, plan.preview), &plan.frame)
+                            .0
+                    }));
+                }
+                Some(Window::of_films(&films))
+            }
+        })
+        .collect()
+}
+
+/// The frames of a run in batches, and the last batch that needs each view and
+/// each variant, so that a view is rendered once and dropped when no later batch
+/// needs it.
+struct Schedule<'a> {
+    plan: &'a Plan,
+    /// The (pass, frame) pairs of each batch: [`frames_per_batch`] frames each.
+    batches: Vec<Vec<(usize, usize)>>,
+    last_use: HashMap<CacheKey, usize>,
+    variant_last_use: HashMap<usize, usize>,
+}
+
+impl<'a> Schedule<'a> {
+    /// The batches of `jobs` ((pass, frame) pairs, a frame's passes together).
+    fn new(plan: &'a Plan, jobs: &[(usize, usize)]) -> Schedule<'a> {
+        let mut batches: Vec<Vec<(usize, usize)>> = Vec::new();
+        let per_batch = frames_per_batch(rayon::current_num_threads());
+        let mut frames_in_batch = 0;
+        let mut last_frame = None;
+        for &(p, k) in jobs {
+            if last_frame != Some(k) {
+                if frames_in_batch % per_batch == 0 {
+                    batches.push(Vec::new());
+                }
+                frames_in_batch += 1;
+                last_frame = Some(k);
+            }
+            batches.last_mut().expect("pushed above").push((p, k));
+        }
+        let mut schedule = Schedule {
+            plan,
+            batches,
+            last_use: HashMap::new(),
+            variant_last_use: HashMap::new(),
+        };
+        for (b, batch) in schedule.batches.iter().enumerate() {
+            for &(p, k) in batch {
+                schedule.variant_last_use.insert(plan.variant(p, k), b);
+                for &e in plan.views.eyes() {
+                    schedule.last_use.insert(schedule.cache_key(p, k, e), b);
+                }
+            }
+        }
+        schedule
+    }
+
+    /// The key of the view eye `e` of frame `k` of pass `p` renders: keyed by the
+    /// variant the frame renders, so frames with other keyframed values never
+    /// share a view.
+    fn cache_key(&self, p: usize, k: usize, e: Eye) -> CacheKey {
+        let views = &self.plan.views;
+        (
+            self.plan.variant(p, k),
+            views.key(k, e),
+            (!views.share).then_some((k, e)),
+        )
+    }
+
+    /// The views batch `b` needs that no batch before it rendered (those not in
+    /// `cache`), each with the (pass, frame) it is first rendered for.
+    fn todo(
+        &self,
+        b: usize,
+        cache: &HashMap<CacheKey, Rendered>,
+    ) -> Vec<(CacheKey, (usize, usize))> {
+        let mut todo: Vec<(CacheKey, (usize, usize))> = Vec::new();
+        let mut seen = HashSet::new();
+        for &(p, k) in &self.batches[b] {
+            for &e in self.plan.views.eyes() {
+                let ck = self.cache_key(p, k, e);
+                if !cache.contains_key(&ck) && seen.insert(ck) {
+                    todo.push((ck, (p, k)));
+                }
+            }
+        }
+        todo
+    }
+
+    /// Drops the views and the variants' runtimes that no batch after batch `b`
+    /// needs.
+    fn forget_after(
+        &self,
+        b: usize,
+        cache: &mut HashMap<CacheKey, Rendered>,
+        runtimes: &mut Runtimes<'_>,
+    ) {
+        cache.retain(|ck, _| self.last_use.get(ck).is_some_and(|&last| last > b));
+        runtimes.retain(|v, _| self.variant_last_use.get(v).is_some_and(|&last| last > b));
+    }
 }
