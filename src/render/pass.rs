@@ -120,46 +120,22 @@ enum ModeSpec {
     Exact(Exact),
 }
 
-/// One render pass, as planned from the scene and the volume's header: what it
-/// needs, what it stores, and, once the voxels and the shared precomputations are
-/// there, the [`RenderView`] that renders it.
-#[derive(Clone, Debug)]
-pub struct RenderPass {
-    /// The pass's name (file prefix).
-    pub name: String,
-    mode: ModeSpec,
-    mode_name: &'static str,
-    interpolation: Interpolation,
-    gradient: GradientMethod,
-    /// Sample spacing in world units.
-    pub dt: f64,
-    step_voxels: f64,
-    voxel_length: f64,
-    jitter: Option<u64>,
-    needs: Needs,
-    scalar_type: ScalarType,
-    clips: Vec<ClipPlane>,
-}
-
-impl RenderPass {
-    /// Plans `pass` for a volume of `scalar_type` whose smallest spacing is
-    /// `voxel_length` and whose bounding sphere is `sphere_diameter` across (where
-    /// depth cues are measured), lit by `light`; `skip` = empty-space skipping.
-    pub fn new(
+impl ModeSpec {
+    /// The mode of `pass` (`exact`: its integration is exact), its depth cue
+    /// scaled by the bounding sphere's `sphere_diameter`, its shading lit by
+    /// `light`.
+    fn of(
         pass: &crate::scene::RenderPass,
-        scalar_type: ScalarType,
-        voxel_length: f64,
+        exact: bool,
         sphere_diameter: f64,
         light: Light,
-        skip: bool,
-    ) -> RenderPass {
+    ) -> ModeSpec {
         let shader = |s: &crate::scene::Shading| Shader {
             model: s.model,
             material: s.material,
             light,
         };
-        let exact = pass.integration == Integration::Exact;
-        let mode = match &pass.mode {
+        match &pass.mode {
             Mode::Xray { output, mu } => {
                 let x = Xray {
                     output: *output,
@@ -238,7 +214,76 @@ impl RenderPass {
                 early_stop: *early_stop as f32,
                 preintegrated: *preintegrated && matches!(transfer, Transfer::OneD(_)),
             },
-        };
+        }
+    }
+
+    /// The ranges the mode's skipping grid holds for samples reconstructed with
+    /// `interpolation`.
+    fn grid_source(&self, interpolation: Interpolation) -> GridSource {
+        // X-ray and the average skip all-zero cells, whose ranges must be exact
+        // zeros; the other modes take the narrower ranges without the margin
+        let exact_zeros = matches!(
+            self,
+            ModeSpec::Xray(_)
+                | ModeSpec::Average
+                | ModeSpec::Exact(Exact::Xray { .. } | Exact::Average)
+        );
+        match interpolation {
+            Interpolation::Nearest | Interpolation::Trilinear if exact_zeros => {
+                GridSource::Voxels(Support::Linear)
+            }
+            // the composite passes over octants too: 22 % fewer samples and 4-6 % fewer
+            // instructions per peer-benchmark frame; the iso-surface's samples halved,
+            // but not its instructions, so the other modes skip the octants' set-up
+            Interpolation::Nearest | Interpolation::Trilinear
+                if matches!(self, ModeSpec::Composite { .. }) =>
+            {
+                GridSource::Voxels(Support::LinearOctants)
+            }
+            Interpolation::Nearest | Interpolation::Trilinear => {
+                GridSource::Voxels(Support::LinearTight)
+            }
+            Interpolation::BSpline => GridSource::Voxels(Support::Cubic),
+            Interpolation::Cubic => GridSource::Coefficients,
+        }
+    }
+}
+
+/// One render pass, as planned from the scene and the volume's header: what it
+/// needs, what it stores, and, once the voxels and the shared precomputations are
+/// there, the [`RenderView`] that renders it.
+#[derive(Clone, Debug)]
+pub struct RenderPass {
+    /// The pass's name (file prefix).
+    pub name: String,
+    mode: ModeSpec,
+    mode_name: &'static str,
+    interpolation: Interpolation,
+    gradient: GradientMethod,
+    /// Sample spacing in world units.
+    pub dt: f64,
+    step_voxels: f64,
+    voxel_length: f64,
+    jitter: Option<u64>,
+    needs: Needs,
+    scalar_type: ScalarType,
+    clips: Vec<ClipPlane>,
+}
+
+impl RenderPass {
+    /// Plans `pass` for a volume of `scalar_type` whose smallest spacing is
+    /// `voxel_length` and whose bounding sphere is `sphere_diameter` across (where
+    /// depth cues are measured), lit by `light`; `skip` = empty-space skipping.
+    pub fn new(
+        pass: &crate::scene::RenderPass,
+        scalar_type: ScalarType,
+        voxel_length: f64,
+        sphere_diameter: f64,
+        light: Light,
+        skip: bool,
+    ) -> RenderPass {
+        let exact = pass.integration == Integration::Exact;
+        let mode = ModeSpec::of(pass, exact, sphere_diameter, light);
         let gradient = pass
             .mode
             .shading()
@@ -260,32 +305,7 @@ impl RenderPass {
                 .filter(|g| *g != GradientMethod::Analytic),
             _ => None,
         };
-        // X-ray and the average skip all-zero cells, whose ranges must be exact
-        // zeros; the other modes take the narrower ranges without the margin
-        let exact_zeros = matches!(
-            mode,
-            ModeSpec::Xray(_)
-                | ModeSpec::Average
-                | ModeSpec::Exact(Exact::Xray { .. } | Exact::Average)
-        );
-        let grid = skip.then_some(match interpolation {
-            Interpolation::Nearest | Interpolation::Trilinear if exact_zeros => {
-                GridSource::Voxels(Support::Linear)
-            }
-            // the composite passes over octants too: 22 % fewer samples and 4-6 % fewer
-            // instructions per peer-benchmark frame; the iso-surface's samples halved,
-            // but not its instructions, so the other modes skip the octants' set-up
-            Interpolation::Nearest | Interpolation::Trilinear
-                if matches!(mode, ModeSpec::Composite { .. }) =>
-            {
-                GridSource::Voxels(Support::LinearOctants)
-            }
-            Interpolation::Nearest | Interpolation::Trilinear => {
-                GridSource::Voxels(Support::LinearTight)
-            }
-            Interpolation::BSpline => GridSource::Voxels(Support::Cubic),
-            Interpolation::Cubic => GridSource::Coefficients,
-        });
+        let grid = skip.then(|| mode.grid_source(interpolation));
         // trilinear samples of 8-bit voxels (exact integration reads cells)
         let bytes = !exact
             && interpolation == Interpolation::Trilinear
