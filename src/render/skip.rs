@@ -172,106 +172,10 @@ impl MacroGrid {
     /// that the parallel loop is compiled once, not once per voxel type and filter.
     fn build_rows(n: [usize; 3], support: Support, rows: &RowRanges) -> Self {
         let dims = Self::dims(n);
-        let (before, after) = support.reach();
-        let window = |c: usize, axis: usize| {
-            let lo = (c * MACROCELL).saturating_sub(before);
-            let hi = ((c + 1) * MACROCELL + after).min(n[axis] - 1);
-            (lo, hi)
-        };
-        let (sx, sxy) = (n[0], n[0] * n[1]);
-        let union = |a: [f32; 2], b: [f32; 2]| {
-            [
-                if b[0] < a[0] { b[0] } else { a[0] },
-                if b[1] > a[1] { b[1] } else { a[1] },
-            ]
-        };
-        const EMPTY: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
-        let tight = support == Support::LinearOctants;
-        // the two halves of a cell's window along `axis` (the windows of its
-        // octants), sharing the middle voxel
-        let halves = |c: usize, axis: usize| {
-            let (lo, hi) = window(c, axis);
-            let mid = (c * MACROCELL + MACROCELL / 2).min(hi);
-            [(lo, mid), (mid, hi)]
-        };
+        let windows = Windows { n, support };
         // per slab of macrocells: their raw ranges, and their octants' codes
         // (grids without the margin)
-        let slabs: Vec<SlabRanges> = map_indices(dims[2], &|ck| {
-            let (z0, z1) = window(ck, 2);
-            let nz = z1 - z0 + 1;
-            // along x: per (z, y) row, per macrocell column (per half of one, for
-            // the octants)
-            let windows: Vec<(usize, usize)> = if tight {
-                (0..dims[0]).flat_map(|c| halves(c, 0)).collect()
-            } else {
-                (0..dims[0]).map(|c| window(c, 0)).collect()
-            };
-            let w = windows.len();
-            let mut ranges = vec![EMPTY; nz * n[1] * w];
-            for z in 0..nz {
-                for y in 0..n[1] {
-                    let out = &mut ranges[(z * n[1] + y) * w..][..w];
-                    rows(sx * y + sxy * (z0 + z), &windows, out);
-                }
-            }
-            if !tight {
-                // along y, then z
-                let mut cells = vec![EMPTY; dims[0] * dims[1]];
-                for cj in 0..dims[1] {
-                    let (y0, y1) = window(cj, 1);
-                    for z in 0..nz {
-                        for y in y0..=y1 {
-                            let row = &ranges[(z * n[1] + y) * w..][..w];
-                            let out = &mut cells[cj * dims[0]..][..dims[0]];
-                            for (o, &r) in out.iter_mut().zip(row) {
-                                *o = union(*o, r);
-                            }
-                        }
-                    }
-                }
-                return (cells, Vec::new());
-            }
-            // the octants along y and z (a row on a middle plane counts in both
-            // halves), then each cell as the union of its octants
-            let zh = halves(ck, 2);
-            let mut octants = vec![EMPTY; dims[0] * dims[1] * 8];
-            for cj in 0..dims[1] {
-                let yh = halves(cj, 1);
-                for z in 0..nz {
-                    for y in yh[0].0..=yh[1].1 {
-                        let row = &ranges[(z * n[1] + y) * w..][..w];
-                        for (oz, &(za, zb)) in zh.iter().enumerate() {
-                            for (oy, &(ya, yb)) in yh.iter().enumerate() {
-                                if !(za..=zb).contains(&(z0 + z)) || !(ya..=yb).contains(&y) {
-                                    continue;
-                                }
-                                let cells = &mut octants[cj * dims[0] * 8..][..dims[0] * 8];
-                                for (cell, r) in cells.chunks_exact_mut(8).zip(row.chunks_exact(2))
-                                {
-                                    for ox in 0..2 {
-                                        let o = &mut cell[ox + 2 * oy + 4 * oz];
-                                        *o = union(*o, r[ox]);
-                                    }
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-            let cells: Vec<[f32; 2]> = octants
-                .chunks_exact(8)
-                .map(|o| o.iter().fold(EMPTY, |a, &b| union(a, b)))
-                .collect();
-            let codes = octants
-                .chunks_exact(8)
-                .zip(&cells)
-                .map(|(o, &[lo, hi])| {
-                    let cell = support.cell_range(lo, hi);
-                    std::array::from_fn(|k| encode_part(support.cell_range(o[k][0], o[k][1]), cell))
-                })
-                .collect();
-            (cells, codes)
-        });
+        let slabs: Vec<SlabRanges> = map_indices(dims[2], &|ck| windows.slab(ck, dims, rows));
         let mut raw: Vec<[f32; 2]> = Vec::with_capacity(dims.iter().product());
         let mut parts: Vec<[u8; 8]> = Vec::new();
         for (cells, codes) in slabs {
@@ -283,70 +187,7 @@ impl MacroGrid {
             .map(|&[lo, hi]| support.cell_range(lo, hi))
             .collect();
         if support.reach() == (0, 0) {
-            // a cell that reads only zeros holds only exact zeros, whatever round-off
-            // does, if the voxels one beyond its window are zeros too (those a sample
-            // a round-off outside it reads): X-ray-like tests and a MIP on a ray that
-            // meets nothing pass over it. Those voxels lie in the neighbours' windows,
-            // so only the sides towards a neighbour that reads something are read
-            let zero = |m: usize| raw[m][1] <= 0.0;
-            let [dx, dy, dz] = dims;
-            let flat = |c: [usize; 3]| c[0] + dx * (c[1] + dy * c[2]);
-            // the voxels of cell `c` along `axis` on side `s`: -1, the one before its
-            // window; 0, the window; +1, the one after it (none at the grid's ends)
-            let side = |c: usize, axis: usize, s: i32| -> Option<(usize, usize)> {
-                let (lo, hi) = window(c, axis);
-                match s {
-                    -1 => lo.checked_sub(1).map(|v| (v, v)),
-                    0 => Some((lo, hi)),
-                    _ => (hi + 1 < n[axis]).then_some((hi + 1, hi + 1)),
-                }
-            };
-            let mut out = [[0.0f32; 2]];
-            for z in 0..dz {
-                for y in 0..dy {
-                    for x in 0..dx {
-                        let m = flat([x, y, z]);
-                        if !zero(m) {
-                            continue;
-                        }
-                        let c = [x, y, z];
-                        let mut exact = true;
-                        'sides: for s in 0..27i32 {
-                            let d = [s % 3, s / 3 % 3, s / 9].map(|k| k - 1);
-                            if d == [0, 0, 0] {
-                                continue;
-                            }
-                            let nb = [0, 1, 2].map(|a| {
-                                c[a].checked_add_signed(d[a] as isize)
-                                    .filter(|&v| v < dims[a])
-                            });
-                            let [Some(nx), Some(ny), Some(nz)] = nb else {
-                                continue;
-                            };
-                            if zero(flat([nx, ny, nz])) {
-                                continue;
-                            }
-                            let (Some(wx), Some(wy), Some(wz)) =
-                                (side(x, 0, d[0]), side(y, 1, d[1]), side(z, 2, d[2]))
-                            else {
-                                continue;
-                            };
-                            for k in wz.0..=wz.1 {
-                                for j in wy.0..=wy.1 {
-                                    rows(sx * j + sxy * k, &[wx], &mut out);
-                                    if out[0][1] > 0.0 {
-                                        exact = false;
-                                        break 'sides;
-                                    }
-                                }
-                            }
-                        }
-                        if exact {
-                            ranges[m] = [0.0, 0.0];
-                        }
-                    }
-                }
-            }
+            windows.exact_zeros(dims, &raw, &mut ranges, rows);
         }
         MacroGrid {
             dims,
@@ -422,6 +263,204 @@ impl MacroGrid {
     /// The macrocells `ray` crosses between `t_enter` and `t_exit`, in order.
     pub fn walk(&self, ray: &IndexRay, t_enter: f64, t_exit: f64) -> Walk<'_> {
         Walk::new(self, ray, t_enter, t_exit)
+    }
+}
+
+/// The empty range, which any range's union replaces.
+const EMPTY: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
+
+/// The smallest range holding ranges `a` and `b` (a NaN end of `b` is left out).
+#[inline(always)]
+fn union(a: [f32; 2], b: [f32; 2]) -> [f32; 2] {
+    [
+        if b[0] < a[0] { b[0] } else { a[0] },
+        if b[1] > a[1] { b[1] } else { a[1] },
+    ]
+}
+
+/// The voxel windows a grid's macrocells read on a grid of `n` voxels: each
+/// cell's voxels and those its filter of `support` reaches beyond them.
+struct Windows {
+    n: [usize; 3],
+    support: Support,
+}
+
+impl Windows {
+    /// The voxels `lo..=hi` of macrocell `c` along `axis`.
+    fn window(&self, c: usize, axis: usize) -> (usize, usize) {
+        let (before, after) = self.support.reach();
+        let lo = (c * MACROCELL).saturating_sub(before);
+        let hi = ((c + 1) * MACROCELL + after).min(self.n[axis] - 1);
+        (lo, hi)
+    }
+
+    /// The two halves of cell `c`'s window along `axis` (the windows of its
+    /// octants), sharing the middle voxel.
+    fn halves(&self, c: usize, axis: usize) -> [(usize, usize); 2] {
+        let (lo, hi) = self.window(c, axis);
+        let mid = (c * MACROCELL + MACROCELL / 2).min(hi);
+        [(lo, mid), (mid, hi)]
+    }
+
+    /// The raw ranges of the macrocells of slab `ck` (along z) of a grid of `dims`
+    /// macrocells, x fastest, and for [`Support::LinearOctants`] their octants'
+    /// codes: the ranges of each voxel row's windows along x (`rows`), then their
+    /// unions along y and z.
+    fn slab(&self, ck: usize, dims: [usize; 3], rows: &RowRanges) -> SlabRanges {
+        let n = self.n;
+        let (sx, sxy) = (n[0], n[0] * n[1]);
+        let tight = self.support == Support::LinearOctants;
+        let (z0, z1) = self.window(ck, 2);
+        let nz = z1 - z0 + 1;
+        // along x: per (z, y) row, per macrocell column (per half of one, for
+        // the octants)
+        let windows: Vec<(usize, usize)> = if tight {
+            (0..dims[0]).flat_map(|c| self.halves(c, 0)).collect()
+        } else {
+            (0..dims[0]).map(|c| self.window(c, 0)).collect()
+        };
+        let w = windows.len();
+        let mut ranges = vec![EMPTY; nz * n[1] * w];
+        for z in 0..nz {
+            for y in 0..n[1] {
+                let out = &mut ranges[(z * n[1] + y) * w..][..w];
+                rows(sx * y + sxy * (z0 + z), &windows, out);
+            }
+        }
+        let row = |z: usize, y: usize| &ranges[(z * n[1] + y) * w..][..w];
+        if !tight {
+            // along y, then z
+            let mut cells = vec![EMPTY; dims[0] * dims[1]];
+            for cj in 0..dims[1] {
+                let (y0, y1) = self.window(cj, 1);
+                for z in 0..nz {
+                    for y in y0..=y1 {
+                        let out = &mut cells[cj * dims[0]..][..dims[0]];
+                        for (o, &r) in out.iter_mut().zip(row(z, y)) {
+                            *o = union(*o, r);
+                        }
+                    }
+                }
+            }
+            return (cells, Vec::new());
+        }
+        // the octants along y and z (a row on a middle plane counts in both
+        // halves), then each cell as the union of its octants
+        let zh = self.halves(ck, 2);
+        let mut octants = vec![EMPTY; dims[0] * dims[1] * 8];
+        for cj in 0..dims[1] {
+            let yh = self.halves(cj, 1);
+            for z in 0..nz {
+                for y in yh[0].0..=yh[1].1 {
+                    for (oz, &(za, zb)) in zh.iter().enumerate() {
+                        for (oy, &(ya, yb)) in yh.iter().enumerate() {
+                            if !(za..=zb).contains(&(z0 + z)) || !(ya..=yb).contains(&y) {
+                                continue;
+                            }
+                            let cells = &mut octants[cj * dims[0] * 8..][..dims[0] * 8];
+                            for (cell, r) in
+                                cells.chunks_exact_mut(8).zip(row(z, y).chunks_exact(2))
+                            {
+                                for ox in 0..2 {
+                                    let o = &mut cell[ox + 2 * oy + 4 * oz];
+                                    *o = union(*o, r[ox]);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let cells: Vec<[f32; 2]> = octants
+            .chunks_exact(8)
+            .map(|o| o.iter().fold(EMPTY, |a, &b| union(a, b)))
+            .collect();
+        let support = self.support;
+        let codes = octants
+            .chunks_exact(8)
+            .zip(&cells)
+            .map(|(o, &[lo, hi])| {
+                let cell = support.cell_range(lo, hi);
+                std::array::from_fn(|k| encode_part(support.cell_range(o[k][0], o[k][1]), cell))
+            })
+            .collect();
+        (cells, codes)
+    }
+
+    /// For a grid without the margin: sets to exact zeros the `ranges` of the
+    /// cells whose `raw` ranges read only zeros and the voxels one beyond whose
+    /// windows are zeros too (those a sample a round-off outside the cell reads),
+    /// so that X-ray-like tests and a MIP on a ray that meets nothing pass over
+    /// them. Those voxels lie in the neighbours' windows, so only the sides
+    /// towards a neighbour that reads something are read.
+    fn exact_zeros(
+        &self,
+        dims: [usize; 3],
+        raw: &[[f32; 2]],
+        ranges: &mut [[f32; 2]],
+        rows: &RowRanges,
+    ) {
+        let n = self.n;
+        let (sx, sxy) = (n[0], n[0] * n[1]);
+        let zero = |m: usize| raw[m][1] <= 0.0;
+        let [dx, dy, dz] = dims;
+        let flat = |c: [usize; 3]| c[0] + dx * (c[1] + dy * c[2]);
+        // the voxels of cell `c` along `axis` on side `s`: -1, the one before its
+        // window; 0, the window; +1, the one after it (none at the grid's ends)
+        let side = |c: usize, axis: usize, s: i32| -> Option<(usize, usize)> {
+            let (lo, hi) = self.window(c, axis);
+            match s {
+                -1 => lo.checked_sub(1).map(|v| (v, v)),
+                0 => Some((lo, hi)),
+                _ => (hi + 1 < n[axis]).then_some((hi + 1, hi + 1)),
+            }
+        };
+        let mut out = [[0.0f32; 2]];
+        for z in 0..dz {
+            for y in 0..dy {
+                for x in 0..dx {
+                    let m = flat([x, y, z]);
+                    if !zero(m) {
+                        continue;
+                    }
+                    let c = [x, y, z];
+                    let mut exact = true;
+                    'sides: for s in 0..27i32 {
+                        let d = [s % 3, s / 3 % 3, s / 9].map(|k| k - 1);
+                        if d == [0, 0, 0] {
+                            continue;
+                        }
+                        let nb = [0, 1, 2].map(|a| {
+                            c[a].checked_add_signed(d[a] as isize)
+                                .filter(|&v| v < dims[a])
+                        });
+                        let [Some(nx), Some(ny), Some(nz)] = nb else {
+                            continue;
+                        };
+                        if zero(flat([nx, ny, nz])) {
+                            continue;
+                        }
+                        let (Some(wx), Some(wy), Some(wz)) =
+                            (side(x, 0, d[0]), side(y, 1, d[1]), side(z, 2, d[2]))
+                        else {
+                            continue;
+                        };
+                        for k in wz.0..=wz.1 {
+                            for j in wy.0..=wy.1 {
+                                rows(sx * j + sxy * k, &[wx], &mut out);
+                                if out[0][1] > 0.0 {
+                                    exact = false;
+                                    break 'sides;
+                                }
+                            }
+                        }
+                    }
+                    if exact {
+                        ranges[m] = [0.0, 0.0];
+                    }
+                }
+            }
+        }
     }
 }
 
