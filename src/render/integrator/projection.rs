@@ -519,9 +519,12 @@ fn brightest_first<F: Field, C: Ranked>(
 /// that decides which cells come next. A cell of the peer benchmark's MIP holds 16
 /// samples, and a call costs about as much as two or three of them: one call per
 /// cell took 1.09-1.12x the time of one per 32 samples, which took 0.7 % more
-/// samples (one per 64: 3.7 % more samples, no faster); `bench/peers/README.md`,
-/// twenty-first round.
-const FLUSH_AT: usize = 32;
+/// samples (twenty-first round). Since the sampler's loop per storage kind
+/// (twenty-fifth round), 48 takes 0.96-0.97x the CPU time of 32 on the orthographic
+/// MIP (uint8 and float32) and 0.98-0.99x on the perspective and oblique ones, for
+/// 1.5 % (orthographic) to 2.4 % (oblique) more samples (the oblique MinIP: 1.00x,
+/// 5 % more); 64, 0.97-1.00x for 3.6 % more (`bench/peers/README.md`).
+const FLUSH_AT: usize = 48;
 
 /// Samples of several runs of a march, handed to a ranked consumer (which never
 /// stops a ray) in one call of the sampler: in order, [`BATCH`] at a time, in the
