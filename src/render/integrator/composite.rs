@@ -589,9 +589,13 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
 /// Samples kept by [`Midpoint::take_batch`]'s lookups before they are composited:
 /// a ray that stops early has looked up at most this many samples beyond its last.
 /// A whole batch (64) at once made a frame of an opaque transfer function 1.05x
-/// the time of one sample at a time; 16 makes it 0.97x, and the peer composites'
-/// time the same as 64's (`bench/peers/README.md`, eighteenth round).
-const KEPT: usize = 16;
+/// the time of one sample at a time; 16 made it 0.97x, and the peer composites'
+/// time the same as 64's (eighteenth round). Since the sampler's loop per storage
+/// kind, 32 takes 0.96-0.97x the CPU time of 16 on the perspective peer composites
+/// (uint8 and float32) and 0.97-0.99x on the orthographic ones, 64 0.98x; the
+/// engine CT through an opaque, unshaded bone function 1.006x, a soft one 0.996x
+/// (`bench/peers/README.md`, twenty-fifth round).
+const KEPT: usize = 32;
 
 /// Compositing of pre-integrated segments between consecutive samples.
 struct Segments<'a, F: Field> {
