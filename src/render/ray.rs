@@ -166,6 +166,37 @@ mod tests {
         assert!((r - (1.0f64 + 4.5 * 4.5 + 0.25).sqrt()).abs() < 1e-12);
     }
 
+    /// A ray starting on a face with a subnormal direction component has the bound
+    /// 0 * inf = NaN on that axis: it is left out, as a zero component's would be,
+    /// and the interval stays a number.
+    #[test]
+    fn a_nan_bound_is_left_out() {
+        let f = frame([5, 5, 5]);
+        let tiny = f64::from_bits(1); // 1 / tiny is infinite
+        for t_min in [0.0, f64::NEG_INFINITY] {
+            for (o, face) in [(0.0, "low"), (4.0, "high")] {
+                let r = IndexRay {
+                    o: DVec3::new(o, 2.0, -3.0),
+                    d: DVec3::new(tiny, 0.0, 1.0),
+                };
+                assert!(
+                    ((f.lo.x - o) * (1.0 / tiny)).is_nan()
+                        || ((f.hi.x - o) * (1.0 / tiny)).is_nan()
+                );
+                let flat = IndexRay {
+                    d: DVec3::new(0.0, 0.0, 1.0),
+                    ..r
+                };
+                assert_eq!(
+                    f.clip(&r, t_min),
+                    Some((3.0, 7.0)),
+                    "{face} face, t_min {t_min}"
+                );
+                assert_eq!(f.clip(&r, t_min), f.clip(&flat, t_min));
+            }
+        }
+    }
+
     #[test]
     fn single_voxel_axis_is_a_slab() {
         let f = frame([4, 4, 1]);

@@ -18,6 +18,8 @@ mod two_d;
 use std::fmt;
 
 pub use colormap::Colormap;
+#[cfg(test)]
+pub(crate) use one_d::split_position;
 pub(crate) use one_d::{clamp_unit, table_position};
 pub use one_d::{Table1D, Transfer1D};
 pub use preintegrated::{Preintegrated, COLOR_ENTRIES, INTEGRAL_ENTRIES, MAX_EXTINCTION};

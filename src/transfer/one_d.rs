@@ -116,14 +116,27 @@ impl Table1D {
     pub(crate) unsafe fn lookup_within(&self, x: f32) -> [f32; 4] {
         let last = self.entries.len() - 1;
         debug_assert!((0.0..=last as f32).contains(&x), "{x} outside [0, {last}]");
-        // truncation is floor for x >= 0; one instruction through i32 (tables have
-        // fewer than 2^31 entries: see `table`)
-        // SAFETY (the caller's): x is in [0, last], which an i32 holds
-        let i = (unsafe { x.to_int_unchecked::<i32>() } as usize).min(last - 1);
-        // through u32 (i < 2^31): one conversion, where one from usize tests the sign
-        let t = x - i as u32 as f32;
-        // SAFETY: a table has at least two entries (`table`; `map_alpha` keeps the
-        // length), so `last >= 1` and `i + 1 <= last`
+        // SAFETY (the caller's): x is in [0, last]
+        let (i, t) = unsafe { split_position(x, last as u32) };
+        // SAFETY: i + 1 <= last (`split_position`)
+        unsafe { self.lerp_entries(i as usize, t) }
+    }
+
+    /// Entries `i` and `i + 1` interpolated at fraction `t` from `i` (the second
+    /// half of [`Table1D::lookup_within`], for a caller that split the position
+    /// itself with [`split_position`]).
+    ///
+    /// # Safety
+    /// `i + 1 < len` (as every entry index [`split_position`] gives for this
+    /// table's last index is).
+    #[inline(always)]
+    pub(crate) unsafe fn lerp_entries(&self, i: usize, t: f32) -> [f32; 4] {
+        debug_assert!(
+            i + 1 < self.entries.len(),
+            "entry {i} of {}",
+            self.entries.len()
+        );
+        // SAFETY (the caller's): i + 1 < len
         let (a, b) = unsafe {
             (
                 *self.entries.get_unchecked(i),
@@ -181,6 +194,23 @@ pub(crate) fn lerp4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
 #[inline(always)]
 pub(crate) fn table_position(v: f32, last: f32) -> f32 {
     clamp_unit(v) * last
+}
+
+/// Table position `x` of a table whose last index is `last` split into the entry
+/// before it, `i` (at most `last - 1`, so that `i + 1` is an entry too), and the
+/// fraction `x - i` towards the next: the one split every 1D lookup makes (the
+/// composite's eight-lane lookups make it lane by lane, with the same operations).
+///
+/// # Safety
+/// `x` is in `[0, last]` (so not NaN), `1 <= last < 2^31` (a table has at least two
+/// and fewer than 2^31 entries: see [`Transfer1D::table`]).
+#[inline(always)]
+pub(crate) unsafe fn split_position(x: f32, last: u32) -> (u32, f32) {
+    // truncation is floor for x >= 0; one instruction through i32
+    // SAFETY (the caller's): x is in [0, last], which an i32 holds
+    let i = (unsafe { x.to_int_unchecked::<i32>() } as u32).min(last - 1);
+    // through u32 (i < 2^31): one conversion, where one from usize tests the sign
+    (i, x - i as f32)
 }
 
 /// `x` clamped to [0, 1], NaN to 0 (two comparisons: `x > 0` is false for NaN).

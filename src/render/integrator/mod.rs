@@ -13,6 +13,7 @@ mod crossing;
 mod exact;
 mod projection;
 mod root;
+mod unclear;
 mod xray;
 
 use std::ops::ControlFlow;
