@@ -30,8 +30,13 @@ pub(super) fn available() -> bool {
 /// (Emerald Rapids, model 0xcf, `bench/peers/README.md`, twentieth round).
 /// Elsewhere they do not pay: microcoded by that mitigation on the Intel host of
 /// 2026-12-03 (about four times the time of the loads), and 1.06-1.16x the time of
-/// the loads on the AMD host of 2026-12-04 (family 26). Either way a row reads
-/// the same two words, so the choice changes the time and not the bits.
+/// the loads on the AMD host of 2026-12-04 (family 26). On the other Intel cores
+/// with AVX-512 (Skylake to Rocket Lake) they pay where the kernel reports the
+/// processor not affected by that mitigation: on the Intel host of 2026-12-06
+/// afternoon (model 0xa7, `gather_data_sampling`: "Not affected") they made the
+/// peer MIP frames 0.89x (float32) and 0.83x (uint8) the CPU time, the perspective
+/// composite 0.92x and 0.87x. Either way a row reads the same two words, so the
+/// choice changes the time and not the bits.
 pub(super) fn gathers_pay() -> bool {
     static PAY: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *PAY.get_or_init(|| {
@@ -41,8 +46,17 @@ pub(super) fn gathers_pay() -> bool {
         let intel = [vendor.ebx, vendor.edx, vendor.ecx] == [0x756e_6547, 0x4965_6e69, 0x6c65_746e];
         let family = (signature >> 8) & 0xf;
         let model = ((signature >> 4) & 0xf) | ((signature >> 12) & 0xf0);
-        intel && family == 6 && matches!(model, 0x8f | 0xcf)
+        intel && family == 6 && (matches!(model, 0x8f | 0xcf) || gathers_not_microcoded())
     })
+}
+
+/// Whether the kernel reports this processor not affected by "Gather Data
+/// Sampling" (Linux's `gather_data_sampling` file), and so its gathers not
+/// slowed by that mitigation's microcode; false where it says anything else
+/// ("Mitigation: Microcode", "Vulnerable", "Unknown: ...") or there is no such file.
+fn gathers_not_microcoded() -> bool {
+    std::fs::read_to_string("/sys/devices/system/cpu/vulnerabilities/gather_data_sampling")
+        .is_ok_and(|s| s.trim() == "Not affected")
 }
 
 /// One axis' broadcast constants (as in `avx2.rs`, eight lanes).
