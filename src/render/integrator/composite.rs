@@ -613,7 +613,8 @@ impl<F: Field, T: Lookup> Midpoint<'_, F, T> {
     /// `table` is the whole step's 1D table, `values` a batch of whole steps.
     #[inline(always)]
     fn take_found(&mut self, table: &Table1D, values: &[f32]) -> ControlFlow<usize> {
-        let found = Unclear::find(values, self.pass.clear_unit_up_to, (table.len() - 1) as u32);
+        let mut found = Unclear::new();
+        found.find(values, self.pass.clear_unit_up_to, (table.len() - 1) as u32);
         let mut index = [MaybeUninit::<u8>::uninit(); KEPT];
         let mut rgbas = [MaybeUninit::<[f32; 4]>::uninit(); KEPT];
         let mut j = 0;
