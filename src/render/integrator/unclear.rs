@@ -1,8 +1,9 @@
 //! The first half of the composite's lookups over a batch of samples, eight at a
 //! time (AVX2): which samples are not clear (`Composite::position_unless_clear`),
-//! and for each of those its table entry and fraction (`transfer::split_position`), packed
-//! to the front in the batch's order. The second half, the interpolation between
-//! two entries ([`Table1D::lerp_entries`]), stays one sample at a time.
+//! and for each of those its table entry and fraction
+//! (`transfer::split_position`), packed to the front in the batch's order. The
+//! second half, the interpolation between two entries
+//! ([`Table1D::lerp_entries`]), stays one sample at a time.
 //!
 //! One sample at a time, a sample's test for clear is a branch that the values
 //! decide, taken one way or the other at random where a ray crosses the edge of a
