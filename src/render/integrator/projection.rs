@@ -470,13 +470,8 @@ fn brightest_first<F: Field, C: Ranked>(
     // it starts where that one ended
     let mut last = (usize::MAX, 0);
     let mut sample = |e: &mut C, runs: &mut Runs, s: usize, earlier: bool| {
-        if runs.len >= FLUSH_AT {
-            runs.flush(field, &ray.index, e);
-        }
-        let range = grid.range(spans[s].1 as usize);
-        if e.passes_over(range, earlier) {
-            return;
-        }
+        // the span's samples are found before a flush, so that their chain of
+        // dependent operations runs alongside the sampler's
         let a = if s == 0 {
             0
         } else if last.0 == s - 1 {
@@ -486,6 +481,13 @@ fn brightest_first<F: Field, C: Ranked>(
         };
         let b_end = end(s);
         last = (s, b_end);
+        if runs.len >= FLUSH_AT {
+            runs.flush(field, &ray.index, e);
+        }
+        let range = grid.range(spans[s].1 as usize);
+        if e.passes_over(range, earlier) {
+            return;
+        }
         let mut b = b_end.max(a);
         if e.first_settles(e.rank(range)) {
             // a cell of zeros, sampled only while nothing has been (as the one a
