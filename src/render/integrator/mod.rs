@@ -16,7 +16,6 @@ mod root;
 mod unclear;
 mod xray;
 
-use std::cell::RefCell;
 use std::ops::ControlFlow;
 
 use glam::DVec3;
@@ -216,26 +215,11 @@ pub fn drive<L: Lattice, F: Field, C: Consumer>(
     grid: Option<&MacroGrid>,
     consumer: &mut C,
 ) -> u64 {
-    Batch::with(field, |batch| {
-        drive_with(batch, lattice, field, ray, grid, consumer)
-    })
-}
-
-/// [`drive`] with `batch` (this thread's).
-#[inline(always)]
-fn drive_with<L: Lattice, F: Field, C: Consumer>(
-    batch: &mut Batch,
-    lattice: &L,
-    field: &F,
-    ray: &PixelRay,
-    grid: Option<&MacroGrid>,
-    consumer: &mut C,
-) -> u64 {
     let mut runs = Runs {
         lattice,
         field,
         index: &ray.index,
-        batch,
+        batch: Batch::for_field(field),
         i: 0,
         gap: false,
         open: None,
@@ -300,7 +284,7 @@ struct Runs<'a, L, F> {
     lattice: &'a L,
     field: &'a F,
     index: &'a IndexRay,
-    batch: &'a mut Batch,
+    batch: Batch,
     /// Samples before `i` are handled; those from `i` to the start of the current
     /// part lie in parts that were passed over while `gap` is true. Consecutive
     /// parts that are not passed over are sampled as one run (full batches, and the
@@ -457,28 +441,14 @@ fn pad(ts: &mut [f64; BATCH], n: usize, m: usize) -> usize {
     m
 }
 
-thread_local! {
-    /// Each thread's batch, lent to one ray after another ([`Batch::with`]).
-    static BATCH_OF_THREAD: RefCell<Batch> = RefCell::new(Batch::default());
-}
-
 impl Batch {
-    /// Runs `f` with this thread's batch, set up for samples of `field` (padded
-    /// to its lanes, [`padded`]; no cell cached). Lent, not made per ray: a
-    /// ray's own batch, zeroed when made (768 bytes), took 2.7 % of the
-    /// perspective peer composite's time (`bench/peers/README.md`, twenty-seventh
-    /// round). Its positions and values are written before they are read, so
-    /// what the ray before left in them does not matter.
-    ///
-    /// # Panics
-    /// When `f` asks for the batch again (a ray has one at a time).
+    /// A batch for samples of `field`, padded to its lanes ([`padded`]).
     #[inline(always)]
-    fn with<F: Field, R>(field: &F, f: impl FnOnce(&mut Batch) -> R) -> R {
-        BATCH_OF_THREAD.with_borrow_mut(|batch| {
-            batch.lanes = field.lanes();
-            batch.cache = CellCache::default();
-            f(batch)
-        })
+    fn for_field<F: Field>(field: &F) -> Batch {
+        Batch {
+            lanes: field.lanes(),
+            ..Batch::default()
+        }
     }
 
     /// Hands `consumer` samples `from..to` of `lattice` in order; the sample at
@@ -755,34 +725,6 @@ mod tests {
         }
     }
 
-    /// A ray gets the samples it would get on a thread of its own, whatever the
-    /// thread's batch ([`Batch::with`]) held before: positions and values of NaN,
-    /// another field's lanes.
-    #[test]
-    fn a_ray_does_not_see_what_the_batch_held_before() {
-        let ray = along_x(62.0);
-        let march = March::new(0.0, 62.0, 0.5);
-        let run = || {
-            let field = Lanes::new(4);
-            let mut rec = Record::default();
-            let taken = drive(&march, &field, &ray, None, &mut rec);
-            (taken, rec.0, field.calls())
-        };
-        let fresh = std::thread::scope(|s| s.spawn(run).join().unwrap());
-        Batch::with(&Lanes::new(8), |batch| {
-            batch.ts.fill(f64::NAN);
-            batch.values.fill(f32::NAN);
-            batch.lanes = 8;
-        });
-        let after = run();
-        // (a NaN handed over would make them differ)
-        assert_eq!(after, fresh);
-        // the last batch, 61 samples, left as it is for the field's 4 lanes (with
-        // 8, it would be padded to 64)
-        assert_eq!(after.2.last().map(Vec::len), Some(61));
-        assert_eq!(after.0, march.len() as u64);
-    }
-
     /// `Batch::sample` asks the field for a batch's tail of two or more samples
     /// padded to its lanes (the last position repeated), and hands the consumer
     /// the samples of the run alone, in order, with their own values.
@@ -794,9 +736,8 @@ mod tests {
             for (from, to) in [(0, 1), (3, 5), (0, 64), (1, 66), (10, 127), (0, 127)] {
                 let field = Lanes::new(lanes);
                 let mut rec = Record::default();
-                let stopped = Batch::with(&field, |batch| {
-                    batch.sample(&field, &ray.index, &march, from, to, &mut rec)
-                });
+                let mut batch = Batch::for_field(&field);
+                let stopped = batch.sample(&field, &ray.index, &march, from, to, &mut rec);
                 assert_eq!(stopped, None);
                 let want: Vec<_> = (from..to)
                     .map(|i| (i, march.t(i), field.value(DVec3::X * march.t(i))))

@@ -266,9 +266,7 @@ impl<const MAX: bool> Ranked for Extremum<MAX> {
 /// Hands `e` the first sample of `march` (if it has one); the samples taken.
 fn first_sample<F: Field, C: Consumer>(field: &F, ray: &PixelRay, march: &March, e: &mut C) -> u64 {
     let first = march.len().min(1);
-    let _ = Batch::with(field, |batch| {
-        batch.sample(field, &ray.index, march, 0, first, e)
-    });
+    let _ = Batch::for_field(field).sample(field, &ray.index, march, 0, first, e);
     first as u64
 }
 
@@ -466,58 +464,56 @@ fn brightest_first<F: Field, C: Ranked>(
             march.first_at_or_after(spans[s].0)
         }
     };
-    Batch::with(field, |batch| {
-        let mut taken = 0u64;
-        let mut runs = Runs::new(batch);
-        // the span last sampled and its end: a span sampled right after the one before
-        // it starts where that one ended
-        let mut last = (usize::MAX, 0);
-        let mut sample = |e: &mut C, runs: &mut Runs, s: usize, earlier: bool| {
-            // the span's samples are found before a flush, so that their chain of
-            // dependent operations runs alongside the sampler's
-            let a = if s == 0 {
-                0
-            } else if last.0 == s - 1 {
-                last.1
-            } else {
-                end(s - 1)
-            };
-            let b_end = end(s);
-            last = (s, b_end);
-            if runs.len >= FLUSH_AT {
-                runs.flush(field, &ray.index, e);
-            }
-            let range = grid.range(spans[s].1 as usize);
-            if e.passes_over(range, earlier) {
-                return;
-            }
-            let mut b = b_end.max(a);
-            if e.first_settles(e.rank(range)) {
-                // a cell of zeros, sampled only while nothing has been (as the one a
-                // window starts in, with every sample in front of it): its first
-                // sample is its maximum
-                b = b.min(a + 1);
-            }
-            runs.push(field, &ray.index, march, a, b, e);
-            taken += (b - a) as u64;
+    let mut taken = 0u64;
+    let mut runs = Runs::for_field(field);
+    // the span last sampled and its end: a span sampled right after the one before
+    // it starts where that one ended
+    let mut last = (usize::MAX, 0);
+    let mut sample = |e: &mut C, runs: &mut Runs, s: usize, earlier: bool| {
+        // the span's samples are found before a flush, so that their chain of
+        // dependent operations runs alongside the sampler's
+        let a = if s == 0 {
+            0
+        } else if last.0 == s - 1 {
+            last.1
+        } else {
+            end(s - 1)
         };
-        sample(e, &mut runs, best_span, false);
-        runs.flush(field, &ray.index, e);
-        // most cells are passed over: that test here, without a call (`sample` tests
-        // again, after the flush it may owe first)
-        for (s, &(_, cell)) in spans.iter().enumerate() {
-            if s == best_span {
-                continue;
-            }
-            let earlier = s < best_span;
-            if runs.len < FLUSH_AT && e.passes_over(grid.range(cell as usize), earlier) {
-                continue;
-            }
-            sample(e, &mut runs, s, earlier);
+        let b_end = end(s);
+        last = (s, b_end);
+        if runs.len >= FLUSH_AT {
+            runs.flush(field, &ray.index, e);
         }
-        runs.flush(field, &ray.index, e);
-        Some(taken)
-    })
+        let range = grid.range(spans[s].1 as usize);
+        if e.passes_over(range, earlier) {
+            return;
+        }
+        let mut b = b_end.max(a);
+        if e.first_settles(e.rank(range)) {
+            // a cell of zeros, sampled only while nothing has been (as the one a
+            // window starts in, with every sample in front of it): its first
+            // sample is its maximum
+            b = b.min(a + 1);
+        }
+        runs.push(field, &ray.index, march, a, b, e);
+        taken += (b - a) as u64;
+    };
+    sample(e, &mut runs, best_span, false);
+    runs.flush(field, &ray.index, e);
+    // most cells are passed over: that test here, without a call (`sample` tests
+    // again, after the flush it may owe first)
+    for (s, &(_, cell)) in spans.iter().enumerate() {
+        if s == best_span {
+            continue;
+        }
+        let earlier = s < best_span;
+        if runs.len < FLUSH_AT && e.passes_over(grid.range(cell as usize), earlier) {
+            continue;
+        }
+        sample(e, &mut runs, s, earlier);
+    }
+    runs.flush(field, &ray.index, e);
+    Some(taken)
 }
 
 /// Samples that [`brightest_first`] collects from the cells it cannot pass over
@@ -535,16 +531,19 @@ const FLUSH_AT: usize = 48;
 /// Samples of several runs of a march, handed to a ranked consumer (which never
 /// stops a ray) in one call of the sampler: in order, [`BATCH`] at a time, in the
 /// first `len` places of `batch`.
-struct Runs<'a> {
-    batch: &'a mut Batch,
+struct Runs {
+    batch: Batch,
     len: usize,
 }
 
-impl<'a> Runs<'a> {
-    /// Runs collected in `batch` (set up for the field, [`Batch::with`]).
+impl Runs {
+    /// Runs of samples of `field`.
     #[inline(always)]
-    fn new(batch: &'a mut Batch) -> Runs<'a> {
-        Runs { batch, len: 0 }
+    fn for_field<F: Field>(field: &F) -> Runs {
+        Runs {
+            batch: Batch::for_field(field),
+            len: 0,
+        }
     }
 
     /// Adds samples `a..b` of `march`, handing over a full batch.
@@ -871,28 +870,26 @@ mod tests {
         for lanes in [1, 4, 8] {
             for n in 1..BATCH {
                 let field = Lanes::new(lanes);
-                Batch::with(&field, |batch| {
-                    let mut runs = Runs::new(batch);
-                    let mut e = Extremum::<true> {
-                        best: f32::NEG_INFINITY,
-                    };
-                    // the last samples: the values fall towards them
-                    let from = march.len() - n;
-                    runs.push(&field, &ray.index, &march, from, march.len(), &mut e);
-                    runs.flush(&field, &ray.index, &mut e);
-                    let calls = field.calls();
-                    assert_eq!(calls.len(), 1, "lanes {lanes}, n {n}");
-                    let asked = &calls[0];
-                    let padded = lanes > 1 && n % lanes >= 2;
-                    let want_len = if padded { n.next_multiple_of(lanes) } else { n };
-                    assert_eq!(asked.len(), want_len, "lanes {lanes}, n {n}");
-                    assert!(asked[n..].iter().all(|&t| t == asked[n - 1]));
-                    assert!((0..n).all(|k| asked[k] == march.t(from + k)));
-                    let want = (from..march.len())
-                        .map(|i| field.value(ray.index.o + ray.index.d * march.t(i)))
-                        .fold(f32::NEG_INFINITY, f32::max);
-                    assert_eq!(e.best.to_bits(), want.to_bits(), "lanes {lanes}, n {n}");
-                });
+                let mut runs = Runs::for_field(&field);
+                let mut e = Extremum::<true> {
+                    best: f32::NEG_INFINITY,
+                };
+                // the last samples: the values fall towards them
+                let from = march.len() - n;
+                runs.push(&field, &ray.index, &march, from, march.len(), &mut e);
+                runs.flush(&field, &ray.index, &mut e);
+                let calls = field.calls();
+                assert_eq!(calls.len(), 1, "lanes {lanes}, n {n}");
+                let asked = &calls[0];
+                let padded = lanes > 1 && n % lanes >= 2;
+                let want_len = if padded { n.next_multiple_of(lanes) } else { n };
+                assert_eq!(asked.len(), want_len, "lanes {lanes}, n {n}");
+                assert!(asked[n..].iter().all(|&t| t == asked[n - 1]));
+                assert!((0..n).all(|k| asked[k] == march.t(from + k)));
+                let want = (from..march.len())
+                    .map(|i| field.value(ray.index.o + ray.index.d * march.t(i)))
+                    .fold(f32::NEG_INFINITY, f32::max);
+                assert_eq!(e.best.to_bits(), want.to_bits(), "lanes {lanes}, n {n}");
             }
         }
     }
