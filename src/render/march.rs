@@ -9,6 +9,8 @@
 //! are still sampled). Every position is computed from its index, `t0 + (i +
 //! shift) dt`, never accumulated, so rays of millions of samples do not drift.
 
+use std::mem::MaybeUninit;
+
 /// Positions along a ray, in increasing order: what a sampled integrator visits.
 pub trait Lattice {
     /// Number of positions.
@@ -225,6 +227,82 @@ impl March {
     /// The step.
     pub fn dt(&self) -> f64 {
         self.dt
+    }
+
+    /// [`Lattice::first_at_or_after`] of each of `ts` where it is found cheaply,
+    /// else [`UNKNOWN`]: written into `out` (of the same length) and returned
+    /// there, for a march of fewer than `u32::MAX` positions. Where the machine has
+    /// AVX-512 and `ts` comes in whole groups of eight, each guess is checked eight
+    /// at a time, as `first_at_or_after` checks it, and a wrong one (rare: a
+    /// rounding) is left unknown; elsewhere every one is, so that a caller finds
+    /// only those it needs, one at a time.
+    pub fn first_at_or_after_known<'a>(
+        &self,
+        ts: &[f64],
+        out: &'a mut [MaybeUninit<u32>],
+    ) -> &'a [u32] {
+        assert!(self.len() < UNKNOWN as usize && ts.len() == out.len());
+        #[cfg(target_arch = "x86_64")]
+        if ts.len().is_multiple_of(8) && std::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the machine has AVX-512F; the lengths are checked above
+            unsafe { guesses_avx512(self, ts, out) };
+            // SAFETY: `guesses_avx512` wrote every entry; `MaybeUninit<u32>` has
+            // the layout of `u32`
+            return unsafe { &*(out as *const [MaybeUninit<u32>] as *const [u32]) };
+        }
+        for i in out.iter_mut() {
+            i.write(UNKNOWN);
+        }
+        // SAFETY: as above, every entry was written
+        unsafe { &*(out as *const [MaybeUninit<u32>] as *const [u32]) }
+    }
+}
+
+/// An index that [`March::first_at_or_after_known`] did not find.
+pub const UNKNOWN: u32 = u32::MAX;
+
+/// The guesses of [`March::first_at_or_after_known`], checked as
+/// [`Lattice::first_at_or_after`] checks them, eight to a register: a right one
+/// into `out`, [`UNKNOWN`] for a wrong one.
+///
+/// # Safety
+/// The machine has AVX-512F; `ts` and `out` have the same length, a multiple of 8.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn guesses_avx512(m: &March, ts: &[f64], out: &mut [MaybeUninit<u32>]) {
+    use std::arch::x86_64::*;
+    debug_assert!(ts.len() == out.len() && ts.len().is_multiple_of(8));
+    let n = _mm512_set1_pd(m.len() as f64);
+    let last_before_end = _mm512_set1_pd(m.full_steps as f64);
+    let (t0, t1) = (_mm512_set1_pd(m.t0), _mm512_set1_pd(m.t1));
+    let (dt, inv_dt, shift) = (
+        _mm512_set1_pd(m.dt),
+        _mm512_set1_pd(m.inv_dt),
+        _mm512_set1_pd(m.shift),
+    );
+    let (zero, one) = (_mm512_setzero_pd(), _mm512_set1_pd(1.0));
+    let wrong = _mm512_set1_pd(f64::from(UNKNOWN));
+    // `March::t` of indices given as floats: the operations of `t_at_index` (no
+    // fused multiply-add; `max`/`min` return their second operand unless the first
+    // is beyond it, as the comparisons there), the exit past `full_steps`
+    let at = |x: __m512d| {
+        let t = _mm512_add_pd(t0, _mm512_mul_pd(_mm512_add_pd(x, shift), dt));
+        let t = _mm512_min_pd(_mm512_max_pd(t, t0), t1);
+        _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_GT_OQ>(x, last_before_end), t, t1)
+    };
+    for k in (0..ts.len()).step_by(8) {
+        let t = _mm512_loadu_pd(ts.as_ptr().add(k));
+        // the guess's ceiling in [0, n] (NaN gives 0), as `first_at_or_after`
+        let g = _mm512_sub_pd(_mm512_mul_pd(_mm512_sub_pd(t, t0), inv_dt), shift);
+        let c = _mm512_roundscale_pd::<{ _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC }>(g);
+        let c = _mm512_min_pd(_mm512_max_pd(c, zero), n);
+        let above = _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(c, zero)
+            | _mm512_cmp_pd_mask::<_CMP_LT_OQ>(at(_mm512_sub_pd(c, one)), t);
+        let below =
+            _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(c, n) | _mm512_cmp_pd_mask::<_CMP_GE_OQ>(at(c), t);
+        let ok = above & below;
+        let i = _mm512_cvttpd_epu32(_mm512_mask_blend_pd(ok, wrong, c));
+        _mm256_storeu_si256(out.as_mut_ptr().add(k) as *mut __m256i, i);
     }
 }
 
@@ -485,6 +563,53 @@ mod tests {
                     let floor = (len / dt - shift).floor() as usize;
                     assert_eq!(m.full_steps, floor, "{t0} {t1} {dt} {jitter}");
                     assert_eq!(m.inv_dt.to_bits(), (1.0 / dt).to_bits());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn first_at_or_after_known_agrees_with_one_at_a_time() {
+        #[cfg(target_arch = "x86_64")]
+        let groups = std::is_x86_feature_detected!("avx512f");
+        #[cfg(not(target_arch = "x86_64"))]
+        let groups = false;
+        for m in [
+            March::new(0.3, 17.9, 0.7),
+            March::jittered(-4.0, 9.0, 0.25, 0.61),
+            March::new(5.0, 5.0, 1.0),
+            March::new(-1e6, 1e6, 0.5),
+        ] {
+            // positions themselves, the values a rounding off each side of them,
+            // and others in between (beyond both ends too)
+            let mut ts = vec![f64::NAN, f64::NEG_INFINITY, f64::INFINITY];
+            for i in 0..m.len().min(200) {
+                let t = m.t(i);
+                ts.extend([t, t.next_up(), t.next_down(), t + 0.3 * m.dt()]);
+            }
+            for k in 0..100 {
+                ts.push(-5.0 + k as f64 * 0.23);
+            }
+            // whole groups of eight (found where the machine has AVX-512), and a
+            // length that is not (none found)
+            let whole = ts.len() / 8 * 8;
+            assert_ne!(whole, ts.len());
+            for len in [whole, ts.len()] {
+                let mut out = vec![MaybeUninit::uninit(); len];
+                let known = m.first_at_or_after_known(&ts[..len], &mut out);
+                let mut found = 0;
+                for (&t, &i) in ts.iter().zip(known.iter()) {
+                    if i != UNKNOWN {
+                        assert_eq!(i as usize, m.first_at_or_after(t), "t = {t}");
+                        found += 1;
+                    }
+                }
+                if groups && len == whole {
+                    // all but the non-finite ones and some of those a rounding
+                    // off a position (whose guess may round to it)
+                    assert!(2 * found >= len, "{found} of {len}");
+                } else {
+                    assert_eq!(found, 0);
                 }
             }
         }

@@ -11,7 +11,7 @@ use std::ops::ControlFlow;
 
 use super::xray::Trapezoid;
 use super::{drive, padded, take_each, Batch, Consumer, Counts, Integrand, PixelRay, BATCH};
-use crate::render::march::{Lattice, March};
+use crate::render::march::{Lattice, March, UNKNOWN};
 use crate::render::ray::IndexRay;
 use crate::render::skip::MacroGrid;
 use crate::sample::{Field, Normalize};
@@ -397,6 +397,8 @@ fn drive_ranked<F: Field, C: Ranked>(
 /// Most macrocells a ray's spans are listed for (a 512^3 volume's diagonal crosses
 /// about 200); longer walks go in order.
 const MAX_SPANS: usize = 320;
+// (a whole number of groups of eight, for `March::first_at_or_after_known`)
+const _: () = assert!(MAX_SPANS.is_multiple_of(8));
 
 /// The extremum is the same whatever order the samples come in, and it grows fastest
 /// from the cell that can hold the largest value: the ray's macrocells are listed
@@ -417,13 +419,14 @@ fn brightest_first<F: Field, C: Ranked>(
     e: &mut C,
 ) -> Option<u64> {
     let n = march.len();
-    if n > u32::MAX as usize || grid.len() > u32::MAX as usize {
+    if n >= u32::MAX as usize || grid.len() > u32::MAX as usize {
         return None;
     }
-    // (where the span ends, its cell) of each span: the samples of span `s` are
-    // found only if it is sampled, from `s - 1`'s end and its own (the first span
-    // starts at sample 0, the last ends at `n`)
-    let mut spans = [std::mem::MaybeUninit::<(f64, u32)>::uninit(); MAX_SPANS];
+    // where each span ends, and its cell: the samples of span `s` are those from
+    // `s - 1`'s end to its own (the first span starts at sample 0, the last ends
+    // at `n`)
+    let mut t_ends = [std::mem::MaybeUninit::<f64>::uninit(); MAX_SPANS];
+    let mut cells = [std::mem::MaybeUninit::<u32>::uninit(); MAX_SPANS];
     let mut count = 0;
     let (mut best_key, mut best_span) = (f32::NEG_INFINITY, 0);
     let mut complete = false;
@@ -439,7 +442,8 @@ fn brightest_first<F: Field, C: Ranked>(
         if key > best_key {
             (best_key, best_span) = (key, count);
         }
-        spans[count].write((span.t1, span.cell as u32));
+        t_ends[count].write(span.t1);
+        cells[count].write(span.cell as u32);
         count += 1;
         if span.last {
             complete = true;
@@ -453,38 +457,42 @@ fn brightest_first<F: Field, C: Ranked>(
     if e.first_settles(best_key) {
         return Some(first_sample(field, ray, march, e));
     }
-    // SAFETY: the first `count` entries were written above; `MaybeUninit<T>` has the
-    // layout of `T`.
-    let spans: &[(f64, u32)] =
-        unsafe { &*(std::ptr::addr_of!(spans[..count]) as *const [(f64, u32)]) };
+    // the ends' list padded to whole groups of eight (MAX_SPANS is a multiple)
+    let padded_count = count.next_multiple_of(8);
+    for t in &mut t_ends[count..padded_count] {
+        t.write(w1);
+    }
+    // SAFETY: the first `padded_count` entries of `t_ends` and `count` of `cells`
+    // were written above; `MaybeUninit<T>` has the layout of `T`.
+    let (t_ends, cells): (&[f64], &[u32]) = unsafe {
+        (
+            &*(std::ptr::addr_of!(t_ends[..padded_count]) as *const [f64]),
+            &*(std::ptr::addr_of!(cells[..count]) as *const [u32]),
+        )
+    };
+    // every span's end at once where that is cheap (a few spans a ray are
+    // sampled, but eight ends found together cost less than two found one by
+    // one); any other found only if it is needed
+    let mut known = [std::mem::MaybeUninit::<u32>::uninit(); MAX_SPANS];
+    let known = march.first_at_or_after_known(t_ends, &mut known[..padded_count]);
     let end = |s: usize| {
         if s + 1 == count {
             n
+        } else if known[s] != UNKNOWN {
+            known[s] as usize
         } else {
-            march.first_at_or_after(spans[s].0)
+            march.first_at_or_after(t_ends[s])
         }
     };
     let mut taken = 0u64;
     let mut runs = Runs::for_field(field);
-    // the span last sampled and its end: a span sampled right after the one before
-    // it starts where that one ended
-    let mut last = (usize::MAX, 0);
     let mut sample = |e: &mut C, runs: &mut Runs, s: usize, earlier: bool| {
-        // the span's samples are found before a flush, so that their chain of
-        // dependent operations runs alongside the sampler's
-        let a = if s == 0 {
-            0
-        } else if last.0 == s - 1 {
-            last.1
-        } else {
-            end(s - 1)
-        };
+        let a = if s == 0 { 0 } else { end(s - 1) };
         let b_end = end(s);
-        last = (s, b_end);
         if runs.len >= FLUSH_AT {
             runs.flush(field, &ray.index, e);
         }
-        let range = grid.range(spans[s].1 as usize);
+        let range = grid.range(cells[s] as usize);
         if e.passes_over(range, earlier) {
             return;
         }
@@ -502,7 +510,7 @@ fn brightest_first<F: Field, C: Ranked>(
     runs.flush(field, &ray.index, e);
     // most cells are passed over: that test here, without a call (`sample` tests
     // again, after the flush it may owe first)
-    for (s, &(_, cell)) in spans.iter().enumerate() {
+    for (s, &cell) in cells.iter().enumerate() {
         if s == best_span {
             continue;
         }
