@@ -829,15 +829,75 @@ impl FrontToBack {
 
     /// [`FrontToBack::add`] of each colour (its opacity last) in order; the index
     /// of the one after which the ray may stop. Out of line: one function for
-    /// every voxel type's composite, whose loop keeps the state in registers.
+    /// every voxel type's composite, whose loop keeps the state in registers
+    /// (written back once, where a loop over `self`'s fields stored them after
+    /// every sample).
     #[inline(never)]
     fn add_all(&mut self, rgbas: &[[f32; 4]]) -> Option<usize> {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the machine has AVX2
+            return unsafe { self.add_all_avx2(rgbas) };
+        }
+        self.add_all_scalar(rgbas)
+    }
+
+    /// [`FrontToBack::add_all`] without AVX2.
+    #[inline(always)]
+    fn add_all_scalar(&mut self, rgbas: &[[f32; 4]]) -> Option<usize> {
+        let (mut color, mut alpha, mut transmit) = (self.color, self.alpha, self.transmit);
+        let mut stop = None;
         for (j, &rgba) in rgbas.iter().enumerate() {
-            if self.add(Vec4::from_array(rgba), rgba[3]).is_break() {
-                return Some(j);
+            // the operations of `add`
+            let a = f64::from(rgba[3]);
+            let w = transmit * a;
+            transmit *= 1.0 - a;
+            color += Vec3::from_slice(&rgba).as_dvec3() * w;
+            alpha += w;
+            if alpha >= self.early_stop {
+                stop = Some(j);
+                break;
             }
         }
-        None
+        (self.color, self.alpha, self.transmit) = (color, alpha, transmit);
+        stop
+    }
+
+    /// [`FrontToBack::add_all`] with the colour in one 256-bit register: each
+    /// sample's three channels converted and weighted at once (four lanes, the
+    /// fourth not kept), each lane through the operations of
+    /// [`FrontToBack::add`] (a multiplication, then an addition: the same bits).
+    /// About 16 instructions a sample against 25, in a loop whose chain of
+    /// dependent operations (the transmittance's multiplication) leaves room for
+    /// them.
+    ///
+    /// # Safety
+    /// The machine has AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn add_all_avx2(&mut self, rgbas: &[[f32; 4]]) -> Option<usize> {
+        use std::arch::x86_64::*;
+        let c = self.color;
+        let mut color = _mm256_setr_pd(c.x, c.y, c.z, 0.0);
+        let (mut alpha, mut transmit) = (self.alpha, self.transmit);
+        let mut stop = None;
+        for (j, rgba) in rgbas.iter().enumerate() {
+            let a = f64::from(rgba[3]);
+            let w = transmit * a;
+            transmit *= 1.0 - a;
+            let rgba = _mm256_cvtps_pd(_mm_loadu_ps(rgba.as_ptr()));
+            color = _mm256_add_pd(color, _mm256_mul_pd(rgba, _mm256_set1_pd(w)));
+            alpha += w;
+            if alpha >= self.early_stop {
+                stop = Some(j);
+                break;
+            }
+        }
+        let mut lanes = [0.0; 4];
+        _mm256_storeu_pd(lanes.as_mut_ptr(), color);
+        self.color = DVec3::new(lanes[0], lanes[1], lanes[2]);
+        (self.alpha, self.transmit) = (alpha, transmit);
+        stop
     }
 
     /// RGBA, not premultiplied.
@@ -1026,6 +1086,44 @@ mod tests {
         }
         // both ends of a batch are met
         assert!(stopped[0] > 0 && stopped[1] > 0, "{stopped:?}");
+    }
+
+    #[test]
+    fn add_all_has_the_bits_of_add_one_at_a_time() {
+        let mut next = {
+            let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+            move || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            }
+        };
+        let bits = |f: &FrontToBack| {
+            let c = f.color;
+            [c.x, c.y, c.z, f.alpha, f.transmit].map(f64::to_bits)
+        };
+        let mut stopped = 0;
+        for case in 0..200 {
+            let early_stop = [0.5, 0.99, 1.0][case % 3];
+            let n = case % 40;
+            let rgbas: Vec<[f32; 4]> = (0..n)
+                .map(|_| [next(), next(), next(), 0.2 * next() * next()])
+                .collect();
+            let mut each = FrontToBack::new(early_stop);
+            let stop = rgbas
+                .iter()
+                .position(|&c| each.add(Vec4::from_array(c), c[3]).is_break());
+            stopped += usize::from(stop.is_some());
+            let mut all = FrontToBack::new(early_stop);
+            assert_eq!(all.add_all(&rgbas), stop, "case {case}");
+            assert_eq!(bits(&all), bits(&each), "case {case}");
+            let mut scalar = FrontToBack::new(early_stop);
+            assert_eq!(scalar.add_all_scalar(&rgbas), stop, "case {case}");
+            assert_eq!(bits(&scalar), bits(&each), "case {case}");
+        }
+        // rays that stop and rays that do not
+        assert!((1..200).contains(&stopped), "{stopped} of 200 stopped");
     }
 
     #[test]
