@@ -649,11 +649,19 @@ impl<F: Field, T: Lookup> Midpoint<'_, F, T> {
 /// A whole batch (64) at once made a frame of an opaque transfer function 1.05x
 /// the time of one sample at a time; 16 made it 0.97x, and the peer composites'
 /// time the same as 64's (eighteenth round). Since the sampler's loop per storage
-/// kind, 32 takes 0.96-0.97x the CPU time of 16 on the perspective peer composites
-/// (uint8 and float32) and 0.97-0.99x on the orthographic ones, 64 0.98x; the
-/// engine CT through an opaque, unshaded bone function 1.006x, a soft one 0.996x
-/// (`bench/peers/README.md`, twenty-fifth round).
-const KEPT: usize = 32;
+/// kind, on the model-207 Intel host, 32 took 0.96-0.97x the CPU time of 16 on the
+/// perspective peer composites (uint8 and float32) and 0.97-0.99x on the
+/// orthographic ones, 64 0.98x; the engine CT through an opaque, unshaded bone
+/// function 1.006x, a soft one 0.996x (`bench/peers/README.md`, twenty-fifth
+/// round).
+///
+/// With the accumulation in registers ([`FrontToBack::add_all`]), 16 again: on
+/// the model-0xa7 Intel host, one thread, interleaved against 32, the perspective
+/// uint8 composite 0.951x and 0.959x the CPU time (8 0.980x, 24 0.982x, 64
+/// 0.989x), orthographic uint8 0.986x, orthographic float32 0.969x, perspective
+/// float32 at two threads 0.992x, the engine CT's bone function (unshaded, 512 x
+/// 512) 0.97-1.00x (`bench/peers/README.md`, twenty-eighth round).
+const KEPT: usize = 16;
 
 /// Compositing of pre-integrated segments between consecutive samples.
 struct Segments<'a, F: Field> {
