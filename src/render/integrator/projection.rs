@@ -99,6 +99,17 @@ trait Ranked: Consumer {
     /// where the field has them ([`Field::raw_map`]).
     const TAKES_RAW: bool = false;
 
+    /// Whether [`brightest_first`] finds every span's end at once
+    /// ([`March::first_at_or_after_known`]) rather than each end when its span is
+    /// sampled: for consumers that sample many of a ray's spans. A MIP samples about
+    /// one in four of the peer benchmark's (orthographic: 6.25 of 23.8), and with
+    /// the ends found at once its frames took 0.95x-0.97x the CPU time (a turntable
+    /// of the uint8 peer volume 0.945x-0.956x, with a depth cue 0.97x); a MinIP
+    /// there often samples one span (a cell of zeros, whose minimum no other cell
+    /// beats), and its turntable took 1.05x-1.07x (`bench/peers/README.md`,
+    /// twenty-eighth round).
+    const ENDS_TOGETHER: bool = false;
+
     /// [`Consumer::take_batch`] of the samples `map.apply(raw)` of `raws` (raw
     /// values of a field, [`Field::raw_values_along`], whose map does not
     /// decrease), with the same result. Called only where [`Ranked::TAKES_RAW`].
@@ -137,6 +148,9 @@ impl Ranked for WeightedMax {
     fn rank(&self, range: [f32; 2]) -> f32 {
         self.bound(range)
     }
+
+    /// (as the plain MIP)
+    const ENDS_TOGETHER: bool = true;
 
     fn skippable_earlier(&self, range: [f32; 2]) -> bool {
         let b = self.bound(range);
@@ -246,6 +260,8 @@ impl<const MAX: bool> Ranked for Extremum<MAX> {
     }
 
     const TAKES_RAW: bool = true;
+
+    const ENDS_TOGETHER: bool = MAX;
 
     /// The raw values' extremum in eight lanes, mapped, then taken as one sample:
     /// the map does not decrease, so it is the extremum of the mapped values (a
@@ -457,8 +473,13 @@ fn brightest_first<F: Field, C: Ranked>(
     if e.first_settles(best_key) {
         return Some(first_sample(field, ray, march, e));
     }
-    // the ends' list padded to whole groups of eight (MAX_SPANS is a multiple)
-    let padded_count = count.next_multiple_of(8);
+    // the ends' list padded to whole groups of eight (MAX_SPANS is a multiple) where
+    // they are found together
+    let padded_count = if C::ENDS_TOGETHER {
+        count.next_multiple_of(8)
+    } else {
+        count
+    };
     for t in &mut t_ends[count..padded_count] {
         t.write(w1);
     }
@@ -470,15 +491,19 @@ fn brightest_first<F: Field, C: Ranked>(
             &*(std::ptr::addr_of!(cells[..count]) as *const [u32]),
         )
     };
-    // every span's end at once where that is cheap (a few spans a ray are
-    // sampled, but eight ends found together cost less than two found one by
-    // one); any other found only if it is needed
+    // every span's end at once where that is cheap (eight found together cost less
+    // than two found one by one) and the consumer samples many spans; any other
+    // end found only if it is needed
     let mut known = [std::mem::MaybeUninit::<u32>::uninit(); MAX_SPANS];
-    let known = march.first_at_or_after_known(t_ends, &mut known[..padded_count]);
+    let known: &[u32] = if C::ENDS_TOGETHER {
+        march.first_at_or_after_known(t_ends, &mut known[..padded_count])
+    } else {
+        &[]
+    };
     let end = |s: usize| {
         if s + 1 == count {
             n
-        } else if known[s] != UNKNOWN {
+        } else if C::ENDS_TOGETHER && known[s] != UNKNOWN {
             known[s] as usize
         } else {
             march.first_at_or_after(t_ends[s])
@@ -486,9 +511,21 @@ fn brightest_first<F: Field, C: Ranked>(
     };
     let mut taken = 0u64;
     let mut runs = Runs::for_field(field);
+    // the span last sampled and its end: a span sampled right after the one before
+    // it starts where that one ended
+    let mut last = (usize::MAX, 0);
     let mut sample = |e: &mut C, runs: &mut Runs, s: usize, earlier: bool| {
-        let a = if s == 0 { 0 } else { end(s - 1) };
+        // the span's samples are found before a flush, so that their chain of
+        // dependent operations runs alongside the sampler's
+        let a = if s == 0 {
+            0
+        } else if last.0 == s - 1 {
+            last.1
+        } else {
+            end(s - 1)
+        };
         let b_end = end(s);
+        last = (s, b_end);
         if runs.len >= FLUSH_AT {
             runs.flush(field, &ray.index, e);
         }
