@@ -801,6 +801,7 @@ fn shaded<F: Field>(
 /// in f64, with early ray termination. The transmittance `1 - A'` is carried as a
 /// product of its own, so that one sample waits on the one before it for a single
 /// multiplication (not a subtraction, a multiplication and an addition).
+#[derive(Clone, Copy)]
 struct FrontToBack {
     color: DVec3,
     alpha: f64,
@@ -850,24 +851,15 @@ impl FrontToBack {
         self.add_all_scalar(rgbas)
     }
 
-    /// [`FrontToBack::add_all`] without AVX2.
+    /// [`FrontToBack::add_all`] without AVX2: [`FrontToBack::add`] on a local copy
+    /// of the state, which then stays in registers, written back once.
     #[inline(always)]
     fn add_all_scalar(&mut self, rgbas: &[[f32; 4]]) -> Option<usize> {
-        let (mut color, mut alpha, mut transmit) = (self.color, self.alpha, self.transmit);
-        let mut stop = None;
-        for (j, &rgba) in rgbas.iter().enumerate() {
-            // the operations of `add`
-            let a = f64::from(rgba[3]);
-            let w = transmit * a;
-            transmit *= 1.0 - a;
-            color += Vec3::from_slice(&rgba).as_dvec3() * w;
-            alpha += w;
-            if alpha >= self.early_stop {
-                stop = Some(j);
-                break;
-            }
-        }
-        (self.color, self.alpha, self.transmit) = (color, alpha, transmit);
+        let mut acc = *self;
+        let stop = rgbas
+            .iter()
+            .position(|&rgba| acc.add(Vec4::from_array(rgba), rgba[3]).is_break());
+        *self = acc;
         stop
     }
 
