@@ -8,7 +8,11 @@ of the process) and wall. Prints the medians, each binary's CPU median over the 
 and every repetition's wall time.
 
 Usage: interleaved.py SCENE BINARY [BINARY ...] [--data DIR] [--reps R] [--threads T] [--frames N] [--u8]
+                      [--mode MODE] [--degrees D] [--set KEY=VALUE]
   e.g. interleaved.py ortho_composite /tmp/volcast-before target/release/volcast --frames 6
+  --mode and --degrees replace the pass's mode and the orbit's degrees (e.g. a MinIP turntable of
+  the peer volume: ortho_mip --mode minip --degrees 360); --set adds a line to the pass (e.g.
+  --set depth_cue=0.5).
 """
 import argparse
 import os
@@ -33,6 +37,10 @@ def main():
     ap.add_argument("--frames", type=int, default=6)
     ap.add_argument("--u8", action="store_true",
                     help="render the uint8 volume (window [0, 255]) instead of the float32 one")
+    ap.add_argument("--mode", help="the pass's mode instead of the scene's")
+    ap.add_argument("--degrees", type=float, help="the orbit's degrees instead of the scene's")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a line added to the pass (repeatable)")
     a = ap.parse_args()
     work = tempfile.mkdtemp()
     try:
@@ -42,6 +50,16 @@ def main():
         if a.u8:
             text = text.replace("volume_f32.nrrd", "volume_u8.nrrd")
             text = re.sub(r"(?m)^window = .*", "window = [0.0, 255.0]", text)
+        if a.degrees is not None:
+            text, k = re.subn(r"(?m)^degrees = .*", f"degrees = {a.degrees}", text)
+            assert k == 1, "the scene has one orbit `degrees` line"
+        if a.mode is not None or a.set:
+            lines = [f'mode = "{a.mode}"'] if a.mode is not None else []
+            if a.mode is None:
+                lines.append(re.search(r'(?m)^mode = .*', text).group(0))
+            lines += [kv.replace("=", " = ", 1) for kv in a.set]
+            text, k = re.subn(r'(?m)^mode = .*', "\n".join(lines), text)
+            assert k == 1, "the scene has one pass with a `mode` line"
         scene = os.path.join(work, a.scene + ".toml")
         open(scene, "w").write(text)
         out = os.path.join(work, "out")

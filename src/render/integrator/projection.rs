@@ -104,9 +104,10 @@ trait Ranked: Consumer {
     /// sampled: for consumers that sample many of a ray's spans. A MIP samples about
     /// one in four of the peer benchmark's (orthographic: 6.25 of 23.8), and with
     /// the ends found at once its frames took 0.95x-0.97x the CPU time (a turntable
-    /// of the uint8 peer volume 0.945x-0.956x, with a depth cue 0.97x); a MinIP
+    /// of the uint8 peer volume 0.93x-0.96x, with a depth cue 0.96x-0.97x); a MinIP
     /// there often samples one span (a cell of zeros, whose minimum no other cell
-    /// beats), and its turntable took 1.05x-1.07x (`bench/peers/README.md`,
+    /// beats), and its turntable took 1.04x-1.07x (`bench/peers/interleaved.py
+    /// ortho_mip ... --degrees 360 --mode minip`; `bench/peers/README.md`,
     /// twenty-eighth round).
     const ENDS_TOGETHER: bool = false;
 
