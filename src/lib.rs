@@ -1,21 +1,32 @@
 //! volcast: declarative TOML scene files in, rendered images of 3D scalar volumes out.
 //!
+//! One run, top to bottom ([`pipeline::render`]):
+//!
 //! ```text
-//! scene file --scene::load--> Scene (resolved, validated, paths absolute)
-//!            --VolumeSource::header--> VolumeHeader (no voxel memory yet)
-//!            --plan::Plan::build--> Plan (views x passes; precomputations; memory)
-//!            --VolumeSource::load--> Volume (native type, limits checked first)
-//!            --render::render_view--> Film (f32 channels per view)
-//!            --output::write--> numbered files (written atomically)
+//! scene file --scene::load-------------> Scene (parsed, validated, paths absolute)
+//!            --VolumeSource::header----> VolumeHeader (sizes, type, geometry; no voxels)
+//!            --plan::Plan::build-------> Plan (views x passes, precomputations, memory)
+//!            --VolumeSource::load------> Volume (native type, limits checked first)
+//!            --pipeline (fit)----------> Plan with the zoom of `zoom = "fit"`
+//!            --RenderPass::prepare-----> a RenderView per pass (tables, grids, gradients)
+//!            --RenderView::render------> Film (f32 channels per view)
+//!            --output (encode, write)--> numbered files, written atomically, and the
+//!                                        manifest, the animations and the viewer page
 //! ```
-//! The scene-file contract is `SCENES.md`; the formulas are those of `REFERENCE.md`
-//! (both in the project's shared folder); the README documents the whole format.
+//!
+//! The layers, from the bottom: [`label`], [`transfer`], [`shade`], [`batch`] and
+//! [`volume`] (readers, no rendering); [`sample`] (reconstruction of the field);
+//! [`scene`] (the file format); [`render`] (rays, passes and integrators);
+//! [`views`] and [`output`]; [`plan`]; [`histogram`]; [`pipeline`]; [`bench`]. A
+//! module imports only from the layers below it. The scene-file reference and the
+//! formulas are in the user guide (`docs/`).
 #![warn(missing_docs)]
 
 pub mod batch;
 pub mod bench;
 pub mod error;
 pub mod histogram;
+pub mod label;
 pub mod output;
 mod parallel;
 pub mod plan;

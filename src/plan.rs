@@ -23,9 +23,11 @@ use std::ops::Range;
 use crate::error::Error;
 use crate::render::footprint::Footprint;
 use crate::render::pass::GridSource;
-use crate::render::{ImageKind, IndexFrame, RenderPass};
+use crate::render::{ClipPlane, ImageKind, IndexFrame, RenderPass};
 use crate::sample::PAIR_TABLE_BYTES;
-use crate::scene::{Format, Layout, LightKindSpec, MipOutput, Mode, OrbitPath, Scene, Units};
+use crate::scene::{
+    Format, Layout, LightKindSpec, MipOutput, Mode, OrbitPath, Scene, Transfer, Units,
+};
 use crate::shade::{Light, LightKind};
 use crate::views::Eye;
 use crate::volume::{human_bytes, VolumeHeader};
@@ -130,6 +132,13 @@ pub struct Plan {
     pub threads: usize,
     /// Rough number of field samples (ray length x pixels / step, upper bound).
     pub samples_estimate: f64,
+    /// The normalised value whose voxels `zoom = "fit"` frames (`None`: the scene
+    /// has a zoom of its own).
+    pub fit_threshold: Option<f64>,
+    /// The voxel index ranges rendered (`[volume] crop`; `None`: all).
+    pub crop: Option<[[usize; 2]; 3]>,
+    /// The scene file (for messages).
+    pub scene_file: std::path::PathBuf,
 }
 
 impl Plan {
@@ -207,6 +216,9 @@ impl Plan {
                 .unwrap_or_else(rayon::current_num_threads)
                 .max(1),
             samples_estimate: 0.0,
+            fit_threshold: fit_threshold(scene),
+            crop: scene.volume.crop,
+            scene_file: scene.path.clone(),
         };
         plan.estimate(scene, header);
         Ok(plan)
@@ -524,8 +536,7 @@ impl Plan {
             "frames   {}..{} of {} ({path}){shard}",
             self.frames.start, self.frames.end, o.frames,
         );
-        if scene.camera.fit.is_some() {
-            let t = crate::pipeline::fit_threshold(scene);
+        if let Some(t) = self.fit_threshold {
             let _ = writeln!(
                 s,
                 "zoom     \"fit\": frames the voxels at or above {t} (normalised) in every frame; computed when the voxels are loaded"
@@ -869,7 +880,7 @@ fn render_passes(
                 .clips
                 .iter()
                 .filter(|c| c.applies_to(&p.name))
-                .map(|c| c.plane())
+                .map(|c| clip_plane(c, c.offset))
                 .collect();
             RenderPass::new(
                 p,
@@ -882,6 +893,45 @@ fn render_passes(
             .with_clips(clips)
         })
         .collect()
+}
+
+/// The fit threshold of `scene` (normalised) when it asks for `zoom = "fit"`:
+/// `fit_threshold`, else the smallest
+/// value any pass looks for (a threshold, an iso value, the first knot or widget
+/// with opacity, the low end of a grey window), else 0 (every voxel above the
+/// window's low end).
+fn fit_threshold(scene: &Scene) -> Option<f64> {
+    let fit = scene.camera.fit?;
+    if let Some(t) = fit.threshold {
+        return Some(t);
+    }
+    let mut t = f64::INFINITY;
+    for p in &scene.passes {
+        let v = match &p.mode {
+            Mode::Lmip { threshold } | Mode::Depth { threshold } => Some(*threshold),
+            Mode::Surface { iso, .. } => Some(*iso),
+            Mode::Composite { transfer, .. } => match transfer {
+                Transfer::OneD(tf) => tf.first_opaque(),
+                Transfer::TwoD(tf) => tf.first_opaque(),
+            },
+            Mode::Mip { .. } | Mode::Minip | Mode::Average => p.window.map(|w| w[0]),
+            Mode::Xray { .. } => None,
+        };
+        if let Some(v) = v {
+            t = t.min(v);
+        }
+    }
+    Some(if t.is_finite() { t.max(0.0) } else { 0.0 })
+}
+
+/// The plane of `clip` as the renderer takes it: through `point + offset normal`
+/// (`offset` is the clip's own, or a keyframed one).
+fn clip_plane(clip: &crate::scene::Clip, offset: f64) -> ClipPlane {
+    ClipPlane {
+        point: clip.point + offset * clip.normal,
+        normal: clip.normal,
+        cap: clip.cap,
+    }
 }
 
 /// The passes each frame renders when keyframes animate pass values (iso,
@@ -924,7 +974,7 @@ fn pass_variants(
                     *index.entry(key).or_insert_with(|| {
                         let planes = clips
                             .iter()
-                            .map(|&(c, o)| scene.clips[c].plane_at(o))
+                            .map(|&(c, o)| clip_plane(&scene.clips[c], o))
                             .collect();
                         let mut v = passes[p].clone().with_clips(planes);
                         if let Some(x) = value {

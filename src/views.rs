@@ -72,8 +72,10 @@ pub struct Views {
     /// Whether identical views are rendered once (`false` renders every (frame,
     /// eye) image on its own, with the same poses; for tests and comparisons).
     pub share: bool,
+    /// The scene's camera: what the circle turns by the orbit offset.
+    camera: Camera,
     /// Each frame's camera on a path other than the circle (rock, elevation,
-    /// keyframes); the circle turns the scene's camera by the orbit offset.
+    /// keyframes).
     cameras: Option<Vec<Camera>>,
 }
 
@@ -121,8 +123,25 @@ impl Views {
             reuse,
             period,
             share,
+            camera: scene.camera,
             cameras,
         }
+    }
+
+    /// The same views with every camera's zoom set to `zoom` (`zoom = "fit"`, found
+    /// once the voxels are loaded; keyframes cannot animate the zoom then, so this
+    /// is what the scene with that zoom would give).
+    pub fn with_zoom(mut self, zoom: f64) -> Views {
+        self.camera.zoom = zoom;
+        for c in self.cameras.iter_mut().flatten() {
+            c.zoom = zoom;
+        }
+        self
+    }
+
+    /// The number of frames of the whole orbit.
+    pub fn orbit_frames(&self) -> usize {
+        self.frames
     }
 
     /// The eyes of every frame, in file order.
@@ -196,17 +215,16 @@ impl Views {
 
     /// The camera a view turns by [`Views::azimuth_offset_deg`]: the scene's on
     /// the circle, the frame's on other paths.
-    fn camera_of<'a>(&'a self, camera: &'a Camera, key: ViewKey) -> &'a Camera {
+    fn camera_of(&self, key: ViewKey) -> &Camera {
         match &self.cameras {
             Some(c) => &c[key.position as usize],
-            None => camera,
+            None => &self.camera,
         }
     }
 
-    /// The azimuth and elevation (degrees) a view is seen from, `camera` being the
-    /// scene's.
-    pub fn angles_deg(&self, camera: &Camera, key: ViewKey) -> (f64, f64) {
-        let c = self.camera_of(camera, key);
+    /// The azimuth and elevation (degrees) a view is seen from.
+    pub fn angles_deg(&self, key: ViewKey) -> (f64, f64) {
+        let c = self.camera_of(key);
         (
             c.azimuth_deg + self.azimuth_offset_deg(key),
             c.elevation_deg,
@@ -214,16 +232,9 @@ impl Views {
     }
 
     /// The camera pose and image plane of a view.
-    pub fn view(
-        &self,
-        camera: &Camera,
-        key: ViewKey,
-        width: usize,
-        height: usize,
-        sphere: (DVec3, f64),
-    ) -> View {
+    pub fn view(&self, key: ViewKey, width: usize, height: usize, sphere: (DVec3, f64)) -> View {
         let view = View::new(
-            self.camera_of(camera, key),
+            self.camera_of(key),
             self.azimuth_offset_deg(key),
             width,
             height,

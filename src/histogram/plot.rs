@@ -12,7 +12,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::{Curve1D, Histograms, Overlays, WidgetBox};
-use crate::output::overlay::short_number;
+use crate::label::short_number;
 use crate::output::plotting;
 use crate::transfer::{Colormap, WidgetShape};
 

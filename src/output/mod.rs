@@ -158,8 +158,8 @@ pub fn describe_outputs(scene: &Scene, out: &Path, viewer: bool) -> String {
                 .text
                 .iter()
                 .map(|p| match p {
-                    overlay::Part::Text(t) => t.clone(),
-                    other => overlay::PLACEHOLDERS
+                    crate::label::Part::Text(t) => t.clone(),
+                    other => crate::label::PLACEHOLDERS
                         .iter()
                         .find(|(_, q)| q == other)
                         .map_or(String::new(), |(n, _)| format!("{{{n}}}")),

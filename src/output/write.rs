@@ -32,10 +32,9 @@ use std::sync::OnceLock;
 use std::time::{Duration, SystemTime};
 
 /// The largest piece handed to the file in one `write(2)` by a writer callback
-/// ([`Folder::write_atomic_with`]). On this project's virtual machines, writes of
-/// 256 KiB and more into a new file took 20-35 ms of system time per 4 MiB in
-/// almost every round of `bench/write_pieces.py`, pieces of 64 KiB 1-3 ms in some
-/// spells and as long in others (see [`DIRECT_FROM`]).
+/// ([`Folder::write_atomic_with`]): large writes into a new file cost much more
+/// system time per byte than pieces of this size on the virtual machines measured
+/// (`bench/write_pieces.py` measures it; see [`DIRECT_FROM`]).
 const WRITE_PIECE: usize = 64 << 10;
 
 /// Files written whole from memory ([`Folder::write_atomic`], [`write_atomic_stat`])

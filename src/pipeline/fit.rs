@@ -9,53 +9,49 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::error::Error;
 use crate::plan::Plan;
 use crate::sample::Normalize;
-use crate::scene::{Mode, Projection, Scene, Transfer};
-
+use crate::scene::Projection;
 use crate::volume::Volume;
 
-/// The fit threshold of `scene` (normalised): `fit_threshold`, else the smallest
-/// value any pass looks for (a threshold, an iso value, the first knot or widget
-/// with opacity, the low end of a grey window), else 0 (every voxel above the
-/// window's low end).
-pub fn threshold(scene: &Scene) -> f64 {
-    if let Some(t) = scene.camera.fit.and_then(|f| f.threshold) {
-        return t;
-    }
-    let mut t = f64::INFINITY;
-    for p in &scene.passes {
-        let v = match &p.mode {
-            Mode::Lmip { threshold } | Mode::Depth { threshold } => Some(*threshold),
-            Mode::Surface { iso, .. } => Some(*iso),
-            Mode::Composite { transfer, .. } => match transfer {
-                Transfer::OneD(tf) => tf.first_opaque(),
-                Transfer::TwoD(tf) => tf.first_opaque(),
-            },
-            Mode::Mip { .. } | Mode::Minip | Mode::Average => p.window.map(|w| w[0]),
-            Mode::Xray { .. } => None,
-        };
-        if let Some(v) = v {
-            t = t.min(v);
-        }
-    }
-    if t.is_finite() {
-        t.max(0.0)
-    } else {
-        0.0
-    }
+/// The plan of a run whose zoom is fitted to the voxels, and the note that says so.
+pub(super) struct Fitted {
+    /// The plan with the fitted zoom.
+    pub plan: Plan,
+    /// What the run reports about the zoom.
+    pub note: String,
 }
 
-/// The zoom of `zoom = "fit"`, or `None` when no voxel reaches the threshold (or
-/// the scene does not ask for a fit).
-pub fn zoom(scene: &Scene, plan: &Plan, volume: &Volume, norm: Normalize) -> Option<f64> {
-    scene.camera.fit?;
-    let t = threshold(scene);
+/// `zoom = "fit"`: the plan with the zoom that frames the voxels at or above the
+/// fit threshold, found before anything is written (`None` for a plan with a zoom
+/// of its own). An error when no voxel reaches the threshold.
+pub(super) fn fit(plan: &Plan, volume: &Volume, norm: Normalize) -> Result<Option<Fitted>, Error> {
+    let Some(t) = plan.fit_threshold else {
+        return Ok(None);
+    };
+    let Some(z) = zoom(plan, t, volume, norm) else {
+        return Err(Error::Plan {
+            scene: plan.scene_file.clone(),
+            message: format!(
+                "[camera] zoom = \"fit\": no voxel of {} is at or above the fit threshold {t} (normalised): set `fit_threshold` lower, or give `zoom` a number",
+                volume.header.source
+            ),
+        });
+    };
+    let mut fitted = plan.clone();
+    fitted.views = fitted.views.with_zoom(z);
+    Ok(Some(Fitted {
+        plan: fitted,
+        note: format!("zoom = \"fit\": {z:.4}, framing the voxels at or above {t:.4} (normalised)"),
+    }))
+}
+
+/// The zoom that frames the voxels at or above threshold `t`, or `None` when no
+/// voxel reaches it.
+fn zoom(plan: &Plan, t: f64, volume: &Volume, norm: Normalize) -> Option<f64> {
     let [nx, ny, nz] = volume.header.sizes;
-    let crop = scene
-        .volume
-        .crop
-        .unwrap_or([[0, nx - 1], [0, ny - 1], [0, nz - 1]]);
+    let crop = plan.crop.unwrap_or([[0, nx - 1], [0, ny - 1], [0, nz - 1]]);
     // voxels at zero threshold: strictly above the window's low end
     let hit = |v: f32| if t > 0.0 { f64::from(v) >= t } else { v > 0.0 };
     let boxes = (crop[2][0]..=crop[2][1])
@@ -84,15 +80,9 @@ pub fn zoom(scene: &Scene, plan: &Plan, volume: &Volume, norm: Normalize) -> Opt
     // every view of the sequence at zoom 1: how much larger it could be
     let views = &plan.views;
     let mut zoom = f64::INFINITY;
-    for k in 0..scene.orbit.frames {
+    for k in 0..views.orbit_frames() {
         for &e in views.eyes() {
-            let v = views.view(
-                &scene.camera,
-                views.key(k, e),
-                plan.width,
-                plan.height,
-                plan.sphere,
-            );
+            let v = views.view(views.key(k, e), plan.width, plan.height, plan.sphere);
             let (mut x, mut y) = (0.0f64, 0.0f64);
             for c in &corners {
                 let d = *c - v.eye;

@@ -26,8 +26,8 @@ type Runtimes<'a> = HashMap<usize, Box<dyn RenderView + 'a>>;
 type Written = Vec<((usize, usize), Vec<PathBuf>)>;
 
 /// Renders the frames `jobs` ((pass, frame) pairs, in order) of `scene`, as
-/// `plan` says, and hands each to `emit`'s sink: the zoom fitted to the voxels
-/// where the scene asks ([`fitted`]), the grey windows found ([`grey_windows`]),
+/// `plan` says (its zoom already fitted to the voxels where the scene asks), and
+/// hands each to `emit`'s sink: the grey windows found ([`grey_windows`]),
 /// then the frames in batches ([`Schedule`]), each batch's distinct views
 /// rendered on the workers while a thread of its own writes the batch before.
 pub(super) fn render_passes(
@@ -43,8 +43,6 @@ pub(super) fn render_passes(
         prepare,
         sink,
     } = *emit;
-    let fit = fitted(scene, plan, volume, norm)?;
-    let (scene, plan) = fit.as_ref().map_or((scene, plan), |f| (&f.scene, &f.plan));
     let header = &volume.header;
     let index_from_world =
         header
@@ -81,7 +79,7 @@ pub(super) fn render_passes(
         todo.par_iter()
             .map(|&(ck, first)| {
                 let rt = &runtimes[&ck.0];
-                let view = view_of(scene, plan, ck.1, (plan.width, plan.height));
+                let view = view_of(plan, ck.1, (plan.width, plan.height));
                 let t0 = Instant::now();
                 let (film, counts) = rt.render(&view, &frame);
                 let r = Rendered {
@@ -202,55 +200,13 @@ pub(super) fn render_passes(
         samples,
         nominal_samples: nominal,
         windows,
-        notes: fit.iter().map(|f| f.note.clone()).collect(),
         ..Summary::default()
     })
 }
 
-/// The scene and plan of a run whose zoom is fitted to the voxels, and the note
-/// that says so.
-struct Fitted {
-    scene: Scene,
-    plan: Plan,
-    note: String,
-}
-
-/// `zoom = "fit"`: the scene and plan with the zoom that frames the voxels at or
-/// above the fit threshold, found before anything is written (`None` for a scene
-/// with a zoom of its own).
-fn fitted(
-    scene: &Scene,
-    plan: &Plan,
-    volume: &Volume,
-    norm: Normalize,
-) -> Result<Option<Fitted>, Error> {
-    if scene.camera.fit.is_none() {
-        return Ok(None);
-    }
-    let t = super::fit::threshold(scene);
-    let Some(z) = super::fit::zoom(scene, plan, volume, norm) else {
-        return Err(Error::Plan {
-            scene: scene.path.clone(),
-            message: format!(
-                "[camera] zoom = \"fit\": no voxel of {} is at or above the fit threshold {t} (normalised): set `fit_threshold` lower, or give `zoom` a number",
-                volume.header.source
-            ),
-        });
-    };
-    let mut s = scene.clone();
-    s.camera.zoom = z;
-    let mut p = plan.clone();
-    p.views = crate::views::Views::new(&s, plan.views.share);
-    Ok(Some(Fitted {
-        scene: s,
-        plan: p,
-        note: format!("zoom = \"fit\": {z:.4}, framing the voxels at or above {t:.4} (normalised)"),
-    }))
-}
-
 /// The view of `key` at `size` (width, height).
-fn view_of(scene: &Scene, plan: &Plan, key: ViewKey, (w, h): (usize, usize)) -> View {
-    plan.views.view(&scene.camera, key, w, h, plan.sphere)
+fn view_of(plan: &Plan, key: ViewKey, (w, h): (usize, usize)) -> View {
+    plan.views.view(key, w, h, plan.sphere)
 }
 
 /// Each pass's grey window: none for colour images and float NRRDs, the pass's
@@ -288,10 +244,11 @@ fn grey_windows(scene: &Scene, plan: &Plan, resources: &Resources) -> Vec<Option
                         .filter(|&&(u, _)| u == v)
                         .map(|&(_, key)| key)
                         .collect();
-                    films.par_extend(keys.par_iter().map(|&key| {
-                        rt.render(&view_of(scene, plan, key, plan.preview), &plan.frame)
-                            .0
-                    }));
+                    films.par_extend(
+                        keys.par_iter().map(|&key| {
+                            rt.render(&view_of(plan, key, plan.preview), &plan.frame).0
+                        }),
+                    );
                 }
                 Some(Window::of_films(&films))
             }

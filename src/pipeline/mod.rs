@@ -20,7 +20,6 @@ mod prepare;
 mod resume;
 mod write;
 
-pub use fit::threshold as fit_threshold;
 pub use prepare::{data_window, value_window};
 pub use resume::completed_images;
 
@@ -41,7 +40,7 @@ use crate::render::{Film, View};
 use crate::scene::Scene;
 use crate::views::Eye;
 use crate::views::ViewKey;
-use crate::volume::{confine, Limits, Volume};
+use crate::volume::{confine, Limits, Volume, VolumeHeader};
 
 /// Reports progress in units of finished (pass, frame) images.
 pub trait Progress: Sync {
@@ -108,6 +107,8 @@ pub fn render(
     result
 }
 
+/// The stages of a run, as pbrt's `RenderCPU` reads: check everything that can be
+/// checked without voxels, find what is already done, render what remains, finish.
 fn render_run(
     scene: &Scene,
     opts: &RunOptions,
@@ -115,9 +116,7 @@ fn render_run(
     progress: &dyn Progress,
 ) -> Result<Summary, Error> {
     let start = Instant::now();
-    let _scope = confine_run(scene, opts)?;
-    let header = scene.volume.source.header()?;
-    let plan = Plan::build(scene, &header, opts)?;
+    let (_scope, header, plan) = preflight(scene, opts, limits)?;
     if opts.finish_only && !plan.out.is_dir() {
         return Err(Error::Plan {
             scene: scene.path.clone(),
@@ -127,122 +126,177 @@ fn render_run(
             ),
         });
     }
-    plan.check_memory(scene, limits)?;
-    let mut summary = Summary::default();
-    let layout = manifest::scene_digest(scene, &header, plan.width, plan.height);
-    let previous = manifest::read_manifest(&plan.out)?;
-    if let Some(f) = previous.as_ref().and_then(manifest::manifest_format) {
-        if f != manifest::MANIFEST_FORMAT && opts.resume {
-            summary.notes.push(format!(
-                "{} was written by an older volcast ({f}) whose records do not cover the voxel data: its images are rendered again",
-                plan.out.join(manifest::MANIFEST).display()
-            ));
-        }
-    }
-    // What the voxels are: known from the manifest when the volume's files did not
-    // change, else hashed while they are read. Images count as done only for the
-    // same voxels.
-    let done_for = |digest: &str| -> Result<HashSet<(usize, usize)>, Error> {
-        if opts.finish_only {
-            // nothing is rendered: every image counts as done here; the manifest
-            // says which exist
-            Ok(plan
-                .frame_list
-                .iter()
-                .flat_map(|&k| (0..scene.passes.len()).map(move |p| (p, k)))
-                .collect())
-        } else if opts.resume {
-            completed(scene, &plan, digest)
-        } else {
-            Ok(HashSet::new())
-        }
-    };
-    let mut volume = None;
-    let (identity, digest, done) = match resume::trusted_identity(scene, previous.as_ref())? {
-        Some(recorded) => {
-            let digest = manifest::data_digest(&layout, recorded.data_xxh3.as_deref());
-            let done = done_for(&digest)?;
-            if jobs(scene, &plan, &done).is_empty() {
-                (recorded, digest, done)
-            } else {
-                let (v, now) = scene.volume.source.load_identified(limits)?;
-                volume = Some(v);
-                if now.data_xxh3 == recorded.data_xxh3 {
-                    (now, digest, done)
-                } else {
-                    let digest = manifest::data_digest(&layout, now.data_xxh3.as_deref());
-                    let done = done_for(&digest)?;
-                    (now, digest, done)
-                }
-            }
-        }
-        None => {
-            let (v, now) = scene.volume.source.load_identified(limits)?;
-            volume = Some(v);
-            let digest = manifest::data_digest(&layout, now.data_xxh3.as_deref());
-            let done = done_for(&digest)?;
-            (now, digest, done)
-        }
-    };
-    let jobs = jobs(scene, &plan, &done);
-    summary.skipped = if opts.finish_only { 0 } else { done.len() };
+    let mut notes = Vec::new();
+    let mut known = Known::find(scene, &header, &plan, opts, limits, &mut notes)?;
+    let jobs = jobs(scene, &plan, &known.done);
     if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
-        summary.notes.push(format!(
+        notes.push(format!(
             "shard {shard} has no frames of {}..{}: nothing to render",
             plan.frames.start, plan.frames.end
         ));
     }
-    if jobs.is_empty() {
-        drop(volume.take());
+    let mut summary = match known.volume.take() {
+        _ if jobs.is_empty() => Summary::default(),
+        Some(volume) => render_jobs(scene, &plan, &volume, &jobs, &known.digest, progress)?,
+        None => {
+            let volume = scene.volume.source.load(limits)?;
+            render_jobs(scene, &plan, &volume, &jobs, &known.digest, progress)?
+        }
+    };
+    summary.skipped = if opts.finish_only {
+        0
     } else {
-        let volume = match volume.take() {
-            Some(v) => v,
-            None => scene.volume.source.load(limits)?,
-        };
-        let norm = value_window(scene, &volume)?;
-        let shard = plan.shard.map(|s| s.to_string());
-        let prepare = || create_folders(&plan.out);
-        let sink = |fv: &FrameViews| -> Result<Vec<PathBuf>, Error> {
-            let t0 = Instant::now();
-            let files = write_frame(scene, &plan, fv)?;
-            let record = FrameRecord {
-                scene_hash: digest.clone(),
-                volcast_version: env!("CARGO_PKG_VERSION").into(),
-                pass: scene.passes[fv.pass].name.clone(),
-                frame: fv.frame,
-                views: fv
-                    .eyes
-                    .iter()
-                    .map(|e| {
-                        let (azimuth, elevation) = plan.views.angles_deg(&scene.camera, e.key);
-                        ViewRecord::new(e.eye, e.key, azimuth, elevation, &e.view, e.samples)
-                    })
-                    .collect(),
-                window: fv.window.map(|w| [w.lo, w.hi]),
-                samples: fv.eyes.iter().map(|e| e.samples).sum(),
-                seconds: fv.seconds + t0.elapsed().as_secs_f64(),
-                shard: shard.clone(),
-                files: files.iter().map(|f| f.1.clone()).collect(),
-            };
-            manifest::write_record(&plan.out, &record)?;
-            Ok(files.into_iter().map(|f| f.0).collect())
-        };
-        let emit = Emit {
-            progress,
-            prepare: &prepare,
-            sink: &sink,
-        };
-        let mut s = render_passes(scene, &plan, &volume, norm, &jobs, &emit)?;
-        let mut notes = std::mem::take(&mut summary.notes);
-        notes.append(&mut s.notes);
-        summary = Summary {
-            skipped: summary.skipped,
-            notes,
-            ..s
-        };
-    }
-    finish(scene, &plan, &header, &identity, &digest, &mut summary)?;
+        known.done.len()
+    };
+    notes.append(&mut summary.notes);
+    summary.notes = notes;
+    finish(
+        scene,
+        &plan,
+        &header,
+        &known.identity,
+        &known.digest,
+        &mut summary,
+    )?;
     summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// What a run finds before it renders: which voxels the volume holds, the digest
+/// its images are recorded under, and which (pass, frame) images already exist for
+/// them; with the volume itself when it had to be read to know its voxels.
+struct Known {
+    identity: crate::volume::VolumeIdentity,
+    digest: String,
+    done: HashSet<(usize, usize)>,
+    volume: Option<Volume>,
+}
+
+impl Known {
+    /// The voxels are known from the manifest when the volume's files did not change,
+    /// else hashed while they are read. Images count as done only for the same
+    /// voxels (`--resume`); with `--finish-only` every image counts as done, and the
+    /// manifest says which exist.
+    fn find(
+        scene: &Scene,
+        header: &crate::volume::VolumeHeader,
+        plan: &Plan,
+        opts: &RunOptions,
+        limits: &Limits,
+        notes: &mut Vec<String>,
+    ) -> Result<Known, Error> {
+        let layout = manifest::scene_digest(scene, header, plan.width, plan.height);
+        let previous = manifest::read_manifest(&plan.out)?;
+        if let Some(f) = previous.as_ref().and_then(manifest::manifest_format) {
+            if f != manifest::MANIFEST_FORMAT && opts.resume {
+                notes.push(format!(
+                    "{} was written by an older volcast ({f}) whose records do not cover the voxel data: its images are rendered again",
+                    plan.out.join(manifest::MANIFEST).display()
+                ));
+            }
+        }
+        let done_for = |digest: &str| -> Result<HashSet<(usize, usize)>, Error> {
+            if opts.finish_only {
+                Ok(plan
+                    .frame_list
+                    .iter()
+                    .flat_map(|&k| (0..scene.passes.len()).map(move |p| (p, k)))
+                    .collect())
+            } else if opts.resume {
+                completed(scene, plan, digest)
+            } else {
+                Ok(HashSet::new())
+            }
+        };
+        // the volume as read, and what is done for its voxels
+        let known =
+            |volume: Volume, identity: crate::volume::VolumeIdentity| -> Result<Known, Error> {
+                let digest = manifest::data_digest(&layout, identity.data_xxh3.as_deref());
+                let done = done_for(&digest)?;
+                Ok(Known {
+                    identity,
+                    digest,
+                    done,
+                    volume: Some(volume),
+                })
+            };
+        let Some(recorded) = resume::trusted_identity(scene, previous.as_ref())? else {
+            let (volume, identity) = scene.volume.source.load_identified(limits)?;
+            return known(volume, identity);
+        };
+        let digest = manifest::data_digest(&layout, recorded.data_xxh3.as_deref());
+        let done = done_for(&digest)?;
+        if jobs(scene, plan, &done).is_empty() {
+            return Ok(Known {
+                identity: recorded,
+                digest,
+                done,
+                volume: None,
+            });
+        }
+        // something is left to render: read the voxels, and if they are not the
+        // recorded ones, find what is done for the voxels there are
+        let (volume, now) = scene.volume.source.load_identified(limits)?;
+        if now.data_xxh3 == recorded.data_xxh3 {
+            return Ok(Known {
+                identity: now,
+                digest,
+                done,
+                volume: Some(volume),
+            });
+        }
+        known(volume, now)
+    }
+}
+
+/// Renders the (pass, frame) images `jobs` of a loaded volume and writes each with
+/// its manifest record: the value window, the zoom fitted where the scene asks
+/// (the plan the frames then render), then the frames.
+fn render_jobs(
+    scene: &Scene,
+    plan: &Plan,
+    volume: &Volume,
+    jobs: &[(usize, usize)],
+    digest: &str,
+    progress: &dyn Progress,
+) -> Result<Summary, Error> {
+    let norm = value_window(scene, volume)?;
+    let fitted = fit::fit(plan, volume, norm)?;
+    let plan = fitted.as_ref().map_or(plan, |f| &f.plan);
+    let shard = plan.shard.map(|s| s.to_string());
+    let prepare = || create_folders(&plan.out);
+    let sink = |fv: &FrameViews| -> Result<Vec<PathBuf>, Error> {
+        let t0 = Instant::now();
+        let files = write_frame(scene, plan, fv)?;
+        let record = FrameRecord {
+            scene_hash: digest.to_string(),
+            volcast_version: env!("CARGO_PKG_VERSION").into(),
+            pass: scene.passes[fv.pass].name.clone(),
+            frame: fv.frame,
+            views: fv
+                .eyes
+                .iter()
+                .map(|e| {
+                    let (azimuth, elevation) = plan.views.angles_deg(e.key);
+                    ViewRecord::new(e.eye, e.key, azimuth, elevation, &e.view, e.samples)
+                })
+                .collect(),
+            window: fv.window.map(|w| [w.lo, w.hi]),
+            samples: fv.eyes.iter().map(|e| e.samples).sum(),
+            seconds: fv.seconds + t0.elapsed().as_secs_f64(),
+            shard: shard.clone(),
+            files: files.iter().map(|f| f.1.clone()).collect(),
+        };
+        manifest::write_record(&plan.out, &record)?;
+        Ok(files.into_iter().map(|f| f.0).collect())
+    };
+    let emit = Emit {
+        progress,
+        prepare: &prepare,
+        sink: &sink,
+    };
+    let mut summary = render_passes(scene, plan, volume, norm, jobs, &emit)?;
+    summary.notes.extend(fitted.map(|f| f.note));
     Ok(summary)
 }
 
@@ -259,18 +313,19 @@ pub fn confine_run(scene: &Scene, opts: &RunOptions) -> Result<Option<confine::S
     Ok(Some(confine::Scope::enter(&root)))
 }
 
-/// What [`render_films`] checks before it loads the volume: `--confine` (the scope
-/// it returns keeps checking files as they are opened) and the plan's memory
-/// estimate against `limits`.
+/// What a run checks before it reads a voxel: `--confine` (the scope it returns
+/// keeps checking files as they are opened: keep it alive while loading), the
+/// volume's header, the plan, and the plan's memory estimate against `limits`.
 fn preflight(
     scene: &Scene,
     opts: &RunOptions,
     limits: &Limits,
-) -> Result<Option<confine::Scope>, Error> {
+) -> Result<(Option<confine::Scope>, VolumeHeader, Plan), Error> {
     let scope = confine_run(scene, opts)?;
     let header = scene.volume.source.header()?;
-    Plan::build(scene, &header, opts)?.check_memory(scene, limits)?;
-    Ok(scope)
+    let plan = Plan::build(scene, &header, opts)?;
+    plan.check_memory(scene, limits)?;
+    Ok((scope, header, plan))
 }
 
 /// One rendered view, kept in memory.
@@ -298,7 +353,7 @@ pub fn render_films(
     opts: &RunOptions,
     limits: &Limits,
 ) -> Result<(Vec<RenderedView>, Summary), Error> {
-    let _scope = preflight(scene, opts, limits)?;
+    let (_scope, _, _) = preflight(scene, opts, limits)?;
     let start = Instant::now();
     let volume = scene.volume.source.load(limits)?;
     let (views, mut summary) = render_films_of(scene, &volume, opts)?;
@@ -317,6 +372,8 @@ pub fn render_films_of(
     let start = Instant::now();
     let plan = Plan::build(scene, &volume.header, opts)?;
     let norm = value_window(scene, volume)?;
+    let fitted = fit::fit(&plan, volume, norm)?;
+    let plan = fitted.as_ref().map_or(&plan, |f| &f.plan);
     let collected = std::sync::Mutex::new(Vec::new());
     let sink = |fv: &FrameViews| {
         let mut c = collected.lock().expect("no panics while holding the lock");
@@ -330,13 +387,14 @@ pub fn render_films_of(
         }));
         Ok(Vec::new())
     };
-    let jobs = jobs(scene, &plan, &HashSet::new());
+    let jobs = jobs(scene, plan, &HashSet::new());
     let emit = Emit {
         progress: &NoProgress,
         prepare: &|| Ok(()),
         sink: &sink,
     };
-    let mut summary = render_passes(scene, &plan, volume, norm, &jobs, &emit)?;
+    let mut summary = render_passes(scene, plan, volume, norm, &jobs, &emit)?;
+    summary.notes.extend(fitted.map(|f| f.note));
     summary.seconds = start.elapsed().as_secs_f64();
     let mut views = collected
         .into_inner()

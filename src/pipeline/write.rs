@@ -4,9 +4,10 @@ use std::path::PathBuf;
 
 use super::FrameViews;
 use crate::error::Error;
+use crate::label::FrameInfo;
 use crate::output::display::{to_display, DisplayKind};
 use crate::output::manifest::{self, FileRecord};
-use crate::output::overlay::{self, Colorbar, FrameInfo, Overlay, ScaleBar};
+use crate::output::overlay::{self, Colorbar, Overlay, ScaleBar};
 use crate::output::{encode, frame_path, stereo};
 use crate::plan::Plan;
 use crate::render::{Film, ImageKind, View};
@@ -105,7 +106,7 @@ pub(super) fn write_frame(
                     if let Some(e) = e {
                         kv.push((
                             "volcast_eye_azimuth_deg".to_string(),
-                            format!("{}", plan.views.angles_deg(&scene.camera, e.key).0),
+                            format!("{}", plan.views.angles_deg(e.key).0),
                         ));
                     }
                 }

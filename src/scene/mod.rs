@@ -49,7 +49,7 @@ pub struct Scene {
     /// What `[[keyframe]]` tables animate (with `orbit.path` = keyframes).
     pub keyframes: Option<Keyframes>,
     /// Text drawn into PNG frames (`[[label]]`), in file order.
-    pub labels: Vec<crate::output::overlay::Label>,
+    pub labels: Vec<crate::label::Label>,
     /// Animated files to assemble from each pass's frames, when requested.
     pub animation: Option<Animation>,
     /// Write `{out}/index.html`, a turntable page for the browser, once every frame
@@ -505,20 +505,6 @@ impl Clip {
         self.passes
             .as_ref()
             .is_none_or(|names| names.iter().any(|n| n == pass))
-    }
-
-    /// The plane as the renderer takes it: through `point + offset normal`.
-    pub fn plane(&self) -> crate::render::ClipPlane {
-        self.plane_at(self.offset)
-    }
-
-    /// The plane moved by `offset` instead of its own (a keyframed offset).
-    pub fn plane_at(&self, offset: f64) -> crate::render::ClipPlane {
-        crate::render::ClipPlane {
-            point: self.point + offset * self.normal,
-            normal: self.normal,
-            cap: self.cap,
-        }
     }
 }
 

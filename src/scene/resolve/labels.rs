@@ -3,7 +3,7 @@
 use toml::Spanned;
 
 use super::Resolver;
-use crate::output::overlay::{self, Label, Position};
+use crate::label::{self, Label, Position};
 use crate::scene::schema::LabelTable;
 use crate::scene::{Format, ImageSpec, RenderPass};
 
@@ -24,7 +24,7 @@ impl Resolver<'_> {
                 );
                 continue;
             };
-            let parts = match overlay::parse_text(text.get_ref()) {
+            let parts = match label::parse_text(text.get_ref()) {
                 Ok(p) => p,
                 Err(m) => {
                     self.err(text.span(), format!("text = {:?}: {m}", text.get_ref()));
