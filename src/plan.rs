@@ -425,7 +425,7 @@ impl Plan {
     /// An error, before anything is read, allocated or written, if the run's
     /// estimated memory ([`Plan::memory_bytes`]) exceeds `limits.max_bytes`
     /// (`--max-memory`); the message lists the estimate item by item.
-    pub fn check_memory(&self, scene: &Scene, limits: &crate::volume::Limits) -> Result<(), Error> {
+    pub fn check_memory(&self, limits: &crate::volume::Limits) -> Result<(), Error> {
         let need = self.memory_bytes();
         if need <= limits.max_bytes {
             return Ok(());
@@ -453,7 +453,7 @@ impl Plan {
             format!("{}G", (want / (1u64 << 30) as f64).ceil())
         };
         Err(Error::Plan {
-            scene: scene.path.clone(),
+            scene: self.scene_file.clone(),
             message: format!(
                 "this run needs about {} of memory, more than the {} allowed by --max-memory:{list}\n\
                  raise the limit (e.g. --max-memory {suggest}) if the machine has the memory, or need less: \

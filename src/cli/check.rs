@@ -13,7 +13,7 @@ pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
     let _scope = volcast::pipeline::confine_run(&scene, &opts).with_context(context)?;
     let header = scene.volume.source.header().with_context(context)?;
     let plan = Plan::build(&scene, &header, &opts)?;
-    plan.check_memory(&scene, &limits)?;
+    plan.check_memory(&limits)?;
     let mut text = plan.describe(&scene, &header);
     text.push('\n');
     if opts.resume {

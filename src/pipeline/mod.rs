@@ -128,7 +128,7 @@ fn render_run(
     }
     let mut notes = Vec::new();
     let mut known = Known::find(scene, &header, &plan, opts, limits, &mut notes)?;
-    let jobs = jobs(scene, &plan, &known.done);
+    let jobs = jobs(&plan, &known.done);
     if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
         notes.push(format!(
             "shard {shard} has no frames of {}..{}: nothing to render",
@@ -226,7 +226,7 @@ impl Known {
         };
         let digest = manifest::data_digest(&layout, recorded.data_xxh3.as_deref());
         let done = done_for(&digest)?;
-        if jobs(scene, plan, &done).is_empty() {
+        if jobs(plan, &done).is_empty() {
             return Ok(Known {
                 identity: recorded,
                 digest,
@@ -324,7 +324,7 @@ fn preflight(
     let scope = confine_run(scene, opts)?;
     let header = scene.volume.source.header()?;
     let plan = Plan::build(scene, &header, opts)?;
-    plan.check_memory(scene, limits)?;
+    plan.check_memory(limits)?;
     Ok((scope, header, plan))
 }
 
@@ -387,7 +387,7 @@ pub fn render_films_of(
         }));
         Ok(Vec::new())
     };
-    let jobs = jobs(scene, plan, &HashSet::new());
+    let jobs = jobs(plan, &HashSet::new());
     let emit = Emit {
         progress: &NoProgress,
         prepare: &|| Ok(()),

@@ -81,14 +81,11 @@ pub(super) fn completed(
 }
 
 /// The (pass, frame) images to render, frame by frame.
-pub(super) fn jobs(
-    scene: &Scene,
-    plan: &Plan,
-    done: &HashSet<(usize, usize)>,
-) -> Vec<(usize, usize)> {
+pub(super) fn jobs(plan: &Plan, done: &HashSet<(usize, usize)>) -> Vec<(usize, usize)> {
+    let passes = plan.passes.len();
     plan.frame_list
         .iter()
-        .flat_map(|&k| (0..scene.passes.len()).map(move |p| (p, k)))
+        .flat_map(|&k| (0..passes).map(move |p| (p, k)))
         .filter(|j| !done.contains(j))
         .collect()
 }

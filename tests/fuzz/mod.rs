@@ -68,12 +68,9 @@ fn scene_case(path: &Path) {
     };
     let opts = RunOptions::default();
     if let Ok(plan) = Plan::build(&scene, &header, &opts) {
-        let _ = plan.check_memory(
-            &scene,
-            &Limits {
-                max_bytes: 256 << 20,
-            },
-        );
+        let _ = plan.check_memory(&Limits {
+            max_bytes: 256 << 20,
+        });
         let _ = plan.describe(&scene, &header);
     }
 }
