@@ -5,7 +5,7 @@
 //!
 //! Truth here never comes from the renderer: polynomials integrated by Simpson's
 //! rule (exact for cubics), trilinear interpolation re-implemented in f64, and the
-//! analytic fields of REFERENCE.md.
+//! analytic fields of docs/formulas.md.
 
 use std::path::{Path, PathBuf};
 
@@ -38,7 +38,7 @@ pub fn write_volume(
     p
 }
 
-/// An orthographic view of a box `[0, hi]` (index = world) per SCENES.md
+/// An orthographic view of a box `[0, hi]` (index = world) per docs/scene-reference.md
 /// "Geometry": the line of pixel (i, j) of an n x n image as (point, direction).
 pub fn ortho_line(
     hi: DVec3,
@@ -76,7 +76,7 @@ pub fn clip(p: DVec3, d: DVec3, hi: DVec3) -> Option<(f64, f64)> {
     (t0 < t1).then_some((t0, t1))
 }
 
-/// Depth reference of SCENES.md: where the line enters the box's bounding sphere.
+/// Depth reference of docs/scene-reference.md: where the line enters the box's bounding sphere.
 fn sphere_entry(p: DVec3, d: DVec3, hi: DVec3) -> f64 {
     let (c, r) = (hi / 2.0, hi.length() / 2.0);
     let oc = p - c;
@@ -402,7 +402,7 @@ fn preintegration_matches_sampling_at_a_step_four_times_larger() {
 
 #[test]
 fn marschner_lobb_reconstruction_error_is_near_the_anchor() {
-    // Error of the reconstructed field against the analytic signal (REFERENCE.md
+    // Error of the reconstructed field against the analytic signal (docs/formulas.md
     // "Reconstruction", evaluated here) at 100 000 points uniform in [-1, 1]^3,
     // from a fixed xorshift seed; the grid is 41^3 with voxel i at -1 + i / 20.
     let ml = |p: DVec3| {

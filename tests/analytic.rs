@@ -1,4 +1,4 @@
-//! Every render mode against the closed-form answers of REFERENCE.md ("Analytic
+//! Every render mode against the closed-form answers of docs/formulas.md ("Analytic
 //! references for accuracy tests"), computed here independently of the renderer.
 //!
 //! Geometry used throughout: synthetic fields on [-1, 1]^3, an orthographic camera

@@ -122,7 +122,7 @@ fn placeholders_are_the_frames_values() {
 #[test]
 fn the_scale_bar_is_its_length_in_pixels() {
     // 200 x 100: the smaller side (100 px) spans the bounding sphere's diameter,
-    // 2 sqrt 3 (SCENES.md, orthographic zoom 1), so a pixel is 2 sqrt 3 / 100 world
+    // 2 sqrt 3 (docs/scene-reference.md, orthographic zoom 1), so a pixel is 2 sqrt 3 / 100 world
     // units; a quarter of the width is 1.73 units, so the bar is 1 unit: 28.87 px
     let (_d, dir) = written(&scene([200, 100], "scale_bar = true", ""));
     let (_e, bare) = written(&scene([200, 100], "", ""));

@@ -1,7 +1,7 @@
 //! `volcast bench accuracy`: speed against error, measured (issue 4); `volcast bench
 //! speed` (`speed.rs`): whole frames of every mode, with and without threads.
 //!
-//! Every render mode is rendered on the analytic fields of REFERENCE.md through the
+//! Every render mode is rendered on the analytic fields of docs/formulas.md through the
 //! real pipeline, over steps, interpolations, gradient estimators and integration
 //! methods (`accuracy.rs`), and compared with the closed-form answers (`truth.rs`).
 //! The results are a [`Report`]: rows of time per frame, samples per second and
@@ -550,7 +550,7 @@ impl Report {
 const METHODS: &str = "
 ## How it is measured
 
-- **Fields** (REFERENCE.md \"Analytic references\"), each sampled on a 41^3 grid over [-1, 1]^3
+- **Fields** (docs/formulas.md \"Analytic references\"), each sampled on a 41^3 grid over [-1, 1]^3
   (one voxel = 0.05): `gaussian` (sigma 0.25), `ball` (radius 0.5, values 0/1), `sphere`
   (distance field 1 - |x|), `fog` (a ball of radius 3: the value 1 everywhere) and
   `marschner-lobb`.

@@ -1,4 +1,4 @@
-//! The closed-form answer for every pixel of a bench image (REFERENCE.md "Analytic
+//! The closed-form answer for every pixel of a bench image (docs/formulas.md "Analytic
 //! references for accuracy tests"), computed from the analytic field, never from
 //! the renderer.
 //!
@@ -7,7 +7,7 @@
 //! along an axis the trilinear interpolant is piecewise linear and sampling at the
 //! voxel planes would be exact), plus quarter turns about z, which see the same
 //! picture (every bench field and its box are symmetric under them). Pixel `(i, j)`
-//! of an `n x n` image is the line of SCENES.md "Geometry" (the image spans the
+//! of an `n x n` image is the line of docs/formulas.md "Cameras" (the image spans the
 //! bounding sphere's diameter, `2 sqrt 3`), clipped to the box `[-1, 1]^3`.
 //!
 //! Closed forms where they exist (the ball's chords and extrema, spherical
@@ -258,7 +258,7 @@ fn first_reach(f: impl Fn(f64) -> f64, t: f64) -> Option<f64> {
 }
 
 /// Emission-absorption along a chord of length `len`, `f` over `[0, 1]`
-/// (REFERENCE.md "Emission-absorption"): extinction `-ln(1 - alpha) /
+/// (docs/formulas.md "Emission-absorption"): extinction `-ln(1 - alpha) /
 /// reference_step` from the transfer function itself (not its table),
 /// front-to-back over [`STEPS`] midpoint steps, each with its exact opacity.
 /// Returns premultiplied RGB and alpha.
@@ -315,7 +315,7 @@ mod tests {
         let (x, z) = (0.2, -0.1);
         let line = along_y(x, z);
         let d2 = x * x + z * z;
-        // REFERENCE.md: line integral sqrt(2 pi) s exp(-d^2 / 2 s^2), cut at y = +-1
+        // docs/formulas.md: line integral sqrt(2 pi) s exp(-d^2 / 2 s^2), cut at y = +-1
         let want = (2.0 * std::f64::consts::PI).sqrt()
             * s
             * (-d2 / (2.0 * s * s)).exp()

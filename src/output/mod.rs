@@ -58,7 +58,7 @@ pub fn try_film(width: usize, height: usize, channels: usize) -> Result<Film, Al
     })
 }
 
-/// `{out}/{pass}_{frame:04}{_left|_right}.{ext}` (SCENES.md "Outputs").
+/// `{out}/{pass}_{frame:04}{_left|_right}.{ext}` (docs/scene-reference.md).
 pub fn frame_path(out: &Path, pass: &str, frame: usize, eye: Eye, ext: &str) -> PathBuf {
     let suffix = match eye {
         Eye::Mono => "",

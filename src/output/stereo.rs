@@ -1,4 +1,4 @@
-//! Stereo layouts (REFERENCE.md "Rotation sequences and stereo"): side by side for
+//! Stereo layouts (docs/formulas.md "Rotation sequences and stereo"): side by side for
 //! parallel viewing, swapped for cross-eyed viewing, or an anaglyph.
 
 use crate::render::Film;

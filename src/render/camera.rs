@@ -1,6 +1,6 @@
 //! Views: from the scene's camera, orbit and eye to one ray per pixel.
 //!
-//! Conventions (SCENES.md "Geometry"): at azimuth 0, elevation 0 and up = +z the eye
+//! Conventions (docs/formulas.md "Cameras"): at azimuth 0, elevation 0 and up = +z the eye
 //! is on the -y side of the target looking along +y, image right is +x and image up
 //! is +z. Azimuth turns the eye counter-clockwise about `up` seen from above;
 //! elevation raises it towards `up`. For another `up`, the whole construction is

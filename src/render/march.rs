@@ -1,5 +1,5 @@
 //! Where a ray is sampled: the march of sample positions from the box entry to the
-//! exit (REFERENCE.md "Render modes"), and the midpoints of its segments (where
+//! exit (docs/formulas.md "Render modes"), and the midpoints of its segments (where
 //! compositing samples).
 //!
 //! A ray inside the box is sampled at `t_enter`, every `dt` after it, and at

@@ -1,4 +1,4 @@
-//! Rays in index space and their clipping to the sampled box (REFERENCE.md
+//! Rays in index space and their clipping to the sampled box (docs/formulas.md
 //! "Coordinates": the slab method, with care for zero direction components).
 
 use glam::{DMat3, DVec3};

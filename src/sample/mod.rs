@@ -6,11 +6,11 @@
 //! interpolated, so NaN or infinite voxels never reach an image (NaN and -inf count
 //! as 0, +inf as 1) and every interpolant with non-negative weights stays in [0, 1].
 //!
-//! Filters (REFERENCE.md "Reconstruction"): `nearest`, `trilinear` (8 voxels),
+//! Filters (docs/formulas.md "Reconstruction"): `nearest`, `trilinear` (8 voxels),
 //! `bspline` (the smoothing cubic B-spline on the voxels themselves, 64 voxels) and
 //! `cubic` (the interpolating cubic B-spline: the same kernel applied to prefiltered
 //! coefficients, so the field passes through the voxel values). Gradients
-//! (REFERENCE.md "Gradients"): central differences or 3D Sobel on the voxel grid,
+//! (docs/formulas.md "Gradients"): central differences or 3D Sobel on the voxel grid,
 //! trilinearly interpolated between the 8 voxels around the position, then mapped to
 //! world units with the inverse-transpose of the grid's axis matrix (so anisotropic
 //! and sheared grids get each axis' own spacing).

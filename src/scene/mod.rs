@@ -3,7 +3,8 @@
 //! `schema.rs` mirrors what the user wrote (with spans); `resolve.rs` fills in
 //! defaults, checks every value and cross-reference, collects *all* problems and
 //! produces a [`Scene`] whose paths are absolute and whose values are in range. The
-//! contract for names and meanings is SCENES.md; the README documents every key.
+//! user's reference for every key, its type, default and meaning is
+//! docs/scene-reference.md.
 
 mod diag;
 mod path;
@@ -113,7 +114,7 @@ pub enum Projection {
     Orthographic,
 }
 
-/// The camera description of SCENES.md.
+/// The camera description of docs/scene-reference.md.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
     /// Projection.

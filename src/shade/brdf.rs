@@ -1,4 +1,4 @@
-//! Specular terms of the three reflection models (REFERENCE.md "Shading").
+//! Specular terms of the three reflection models (docs/formulas.md "Shading").
 //!
 //! Every function takes unit vectors `n` (normal), `l` (towards the light) and `v` (towards
 //! the eye), is called only where `n.l > 0`, and returns a finite value for any finite input:
@@ -43,7 +43,7 @@ pub(crate) fn blinn_phong(n: Vec3, l: Vec3, v: Vec3, exponent: f32) -> f32 {
 /// Cook-Torrance specular reflectance `F D G / (4 (n.v))` per channel, to be multiplied by the
 /// light's radiance.
 ///
-/// This is the standard microfacet form of REFERENCE.md's `k_s M_s L_s F D G / (n.v)`:
+/// This is the standard microfacet form of docs/formulas.md's `k_s M_s L_s F D G / (n.v)`:
 /// - `M_s` enters through the Fresnel term: `F` is Schlick's approximation with the material's
 ///   specular colour as the reflectance at normal incidence `F0`, per channel ([`schlick`]);
 ///   `k_s = 1`.

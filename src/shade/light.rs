@@ -1,6 +1,6 @@
 //! Light sources: where the light comes from and how much arrives at a sample.
 //!
-//! REFERENCE.md "Shading": directional lights (the sun, parallel rays), point lights (falling
+//! docs/formulas.md "Shading": directional lights (the sun, parallel rays), point lights (falling
 //! off as `1/r^2`) and the common headlight (a directional light from the camera).
 
 use glam::Vec3;
@@ -27,7 +27,7 @@ pub enum LightKind {
     },
 }
 
-/// A light source: its kind, colour and intensity (REFERENCE.md "Shading").
+/// A light source: its kind, colour and intensity (docs/formulas.md "Shading").
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
     /// Where the light is and which way it shines.

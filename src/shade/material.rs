@@ -1,13 +1,13 @@
 //! Surface materials: RGB reflection coefficients and a specular exponent.
 //!
-//! The named presets are the table of REFERENCE.md "Material presets" (seed 004, the
+//! The named presets are the table of docs/formulas.md "Material presets" (seed 004, the
 //! "golden skull" exercise). The course converts a preset's `shininess` to a Phong exponent
 //! as `32 * shininess`; OpenGL's tables use `128 * shininess`, so the same names look glossier
 //! there.
 
 use glam::Vec3;
 
-/// RGB reflection coefficients of a surface (REFERENCE.md "Shading").
+/// RGB reflection coefficients of a surface (docs/formulas.md "Shading").
 ///
 /// `ambient`, `diffuse` and `specular` are the `M_a`, `M_d` and `M_s` of the Phong equation;
 /// `exponent` is its `n`. Coefficients are linear RGB, usually in [0, 1].
@@ -26,7 +26,7 @@ pub struct Material {
 /// The course's conversion from a preset's `shininess` to a Phong exponent.
 pub const EXPONENT_PER_SHININESS: f32 = 32.0;
 
-/// One row of REFERENCE.md's preset table, as typed there.
+/// One row of docs/formulas.md's preset table, as typed there.
 struct Preset {
     name: &'static str,
     ambient: [f32; 3],
@@ -35,7 +35,7 @@ struct Preset {
     shininess: f32,
 }
 
-/// REFERENCE.md "Material presets", in the table's order.
+/// docs/formulas.md "Material presets", in the table's order.
 #[rustfmt::skip]
 const PRESETS: [Preset; 12] = [
     preset_row("emerald", [0.0215, 0.1745, 0.0215], [0.07568, 0.61424, 0.07568], [0.633, 0.727811, 0.633], 0.6),
@@ -69,7 +69,7 @@ const fn preset_row(
 }
 
 impl Material {
-    /// The preset names accepted by [`Material::preset`], in REFERENCE.md's order.
+    /// The preset names accepted by [`Material::preset`], in docs/formulas.md's order.
     pub const PRESET_NAMES: [&'static str; 12] = {
         let mut names = [""; 12];
         let mut i = 0;
@@ -80,7 +80,7 @@ impl Material {
         names
     };
 
-    /// The named preset of REFERENCE.md "Material presets" (`"gold"`, `"jade"`, ...), with
+    /// The named preset of docs/formulas.md "Material presets" (`"gold"`, `"jade"`, ...), with
     /// `exponent = 32 * shininess`; `None` for a name not in [`Material::PRESET_NAMES`]
     /// (names are matched exactly, lower case, as the scene file writes them).
     pub fn preset(name: &str) -> Option<Material> {
@@ -93,7 +93,7 @@ impl Material {
     }
 
     /// The grey default for shaded passes without a material: ambient 0.15, diffuse 0.85,
-    /// specular 0.3, exponent 32 (the seed 000 shader, REFERENCE.md "Shading").
+    /// specular 0.3, exponent 32 (the seed 000 shader, docs/formulas.md "Shading").
     pub fn neutral() -> Material {
         Material {
             ambient: Vec3::splat(0.15),
@@ -118,7 +118,7 @@ mod tests {
     /// Name, ambient, diffuse, specular, shininess.
     type Row = (&'static str, [f32; 3], [f32; 3], [f32; 3], f32);
 
-    /// Rows typed again from REFERENCE.md, independently of `PRESETS`.
+    /// Rows typed again from docs/formulas.md, independently of `PRESETS`.
     #[test]
     fn presets_match_the_reference_table() {
         #[rustfmt::skip]

@@ -4,8 +4,8 @@
 //! shaded `composite` passes (each sample shaded with its transfer-function colour). In: a world
 //! position, a unit normal facing the viewer (or none where the gradient is zero), the
 //! direction to the eye and a base colour. Out: linear RGB, not clamped. Formulas:
-//! REFERENCE.md "Shading" and "Material presets"; the reflection models' specular terms live in
-//! `brdf.rs`.
+//! docs/formulas.md "Shading" and "Material presets"; the reflection models' specular
+//! terms live in `brdf.rs`.
 //!
 //! All three models share the ambient and diffuse terms
 //! `I = M_a base L + M_d base L max(n.l, 0) + specular`, with `k_a = k_d = k_s = 1` (scale a
@@ -21,7 +21,7 @@ use glam::Vec3;
 pub use light::{Incident, Light, LightKind, MIN_LIGHT_DISTANCE};
 pub use material::{Material, EXPONENT_PER_SHININESS};
 
-/// The reflection model that computes the specular term (REFERENCE.md "Shading").
+/// The reflection model that computes the specular term (docs/formulas.md "Shading").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Model {
     /// `M_s L max(r.v, 0)^e`, `r` the light vector mirrored about the normal.
@@ -49,7 +49,7 @@ impl Shader {
     /// - `p`: world position of the sample (matters for point lights only).
     /// - `normal`: unit normal already flipped to face the viewer, or `None` where the gradient
     ///   is zero: such a sample has no direction and gets the ambient term only
-    ///   (REFERENCE.md "Gradients").
+    ///   (docs/formulas.md "Gradients").
     /// - `to_eye`: unit vector from `p` towards the eye (`-ray direction`).
     /// - `base`: colour multiplying the ambient and diffuse terms: `Vec3::ONE` for iso-surfaces,
     ///   the transfer function's colour for shaded compositing. The highlight keeps the

@@ -1,6 +1,6 @@
 //! Curves through knots: piecewise linear, or monotone piecewise cubic Hermite (PCHIP).
 //!
-//! REFERENCE.md "Transfer functions" warns that a cubic spline through the knots may overshoot
+//! docs/formulas.md "Transfer functions" warns that a cubic spline through the knots may overshoot
 //! them and must be clamped. The cubic here is the shape-preserving PCHIP instead (Fritsch and
 //! Carlson 1980, with the Fritsch-Butland weighted harmonic mean for interior slopes and the
 //! three-point end slopes of MATLAB's `pchip` and SciPy's `PchipInterpolator`): it passes through

@@ -4,7 +4,7 @@
 //! `[transfer.NAME]` tables. Out: RGBA in [0, 1], evaluated directly or tabulated
 //! ([`Table1D`], [`Table2D`]) once per pass for the `composite` integrator, which also applies
 //! [`correct_opacity`] for its step size. Colour is not premultiplied; alpha is defined for the
-//! pass's reference step. Formulas: REFERENCE.md "Transfer functions" and "Emission-absorption
+//! pass's reference step. Formulas: docs/formulas.md "Transfer functions" and "Emission-absorption
 //! and compositing".
 
 mod colormap;
@@ -33,7 +33,7 @@ pub enum Interpolation {
     Linear,
     /// Monotone piecewise cubic Hermite (PCHIP, Fritsch and Carlson 1980): smooth (C1), passes
     /// through the knots and never overshoots them, so it needs no clamping to [0, 1]
-    /// (REFERENCE.md warns that an ordinary cubic spline does).
+    /// (docs/formulas.md warns that an ordinary cubic spline does).
     Cubic,
 }
 
@@ -104,7 +104,7 @@ fn check_unit(name: &str, x: f32) -> Result<(), String> {
     }
 }
 
-/// Opacity correction (REFERENCE.md "Emission-absorption and compositing"): the opacity for a
+/// Opacity correction (docs/formulas.md "Emission-absorption and compositing"): the opacity for a
 /// step `ratio = dt / dt0` times the reference step, for which the opacity is `a`:
 /// `a' = 1 - (1 - a)^ratio`, so that images converge as `dt -> 0` instead of turning opaque.
 ///

@@ -1,5 +1,5 @@
 //! 1D transfer functions: colour and opacity knots over the normalised value, and their
-//! lookup tables (REFERENCE.md "Transfer functions").
+//! lookup tables (docs/formulas.md "Transfer functions").
 
 use super::curve::Curve;
 use super::{check_unit, Interpolation, KnotCurve, TransferError};

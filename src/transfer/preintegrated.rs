@@ -1,6 +1,6 @@
 //! Pre-integrated 1D transfer functions (Engel, Kraus and Ertl 2001, "High-quality
 //! pre-integrated volume rendering using hardware-accelerated pixel shading";
-//! REFERENCE.md "Emission-absorption and compositing").
+//! docs/formulas.md "Emission-absorption and compositing").
 //!
 //! A ray segment of length `L` from a sample of value `f` (front) to one of value
 //! `b` (back) is integrated as if the value varied linearly between them, so thin
@@ -49,7 +49,7 @@ pub struct Preintegrated {
     color: Vec<[f32; 3]>,
 }
 
-/// Extinction per reference step of opacity `a` (REFERENCE.md opacity correction:
+/// Extinction per reference step of opacity `a` (docs/formulas.md opacity correction:
 /// `1 - a = exp(-sigma)`), capped at [`MAX_EXTINCTION`].
 fn extinction(a: f32) -> f64 {
     let a = f64::from(clamp_unit(a));

@@ -1,5 +1,5 @@
 //! 2D transfer functions `RGBA(f, |grad f|)` built from widgets, and their lookup tables
-//! (REFERENCE.md "Transfer functions": boundaries between materials show up as arcs in the
+//! (docs/formulas.md "Transfer functions": boundaries between materials show up as arcs in the
 //! value / gradient-magnitude histogram, Levoy 1988, Kindlmann and Durkin 1998).
 
 use super::one_d::{clamp_unit, lerp4, table_position};

@@ -1,6 +1,6 @@
 //! Where voxels sit in the world.
 //!
-//! Convention (REFERENCE.md "Coordinates"): voxel `(i, j, k)` sits at
+//! Convention (docs/formulas.md "Coordinates"): voxel `(i, j, k)` sits at
 //! `origin + i*a0 + j*a1 + k*a2`, with `a0, a1, a2` the axis vectors (NRRD
 //! `space directions`, or `spacing * unit axis` for plain spacings). Voxel values are
 //! point samples at those positions (cell-centred data is treated the same way); the

@@ -1,8 +1,8 @@
 //! Analytic test fields sampled on a grid spanning the cube [-1, 1]^3.
 //!
-//! The fields and their closed-form renderings are listed in REFERENCE.md
+//! The fields and their closed-form renderings are listed in docs/formulas.md
 //! ("Analytic references for accuracy tests"); `blobs` is the field of the common
-//! benchmark (the project's shared PEERS.md). Values lie in [0, 1]; the data is
+//! benchmark (docs/performance.md). Values lie in [0, 1]; the data is
 //! stored as `float`, or quantised to `uint8` / `uint16` (`round(max v)`, where
 //! `max` is the type's largest value).
 
@@ -87,7 +87,7 @@ impl Field {
     }
 }
 
-/// REFERENCE.md "Reconstruction": the Marschner-Lobb signal on [-1, 1]^3.
+/// docs/formulas.md "Reconstruction": the Marschner-Lobb signal on [-1, 1]^3.
 pub fn marschner_lobb(p: DVec3) -> f64 {
     use std::f64::consts::PI;
     const F_M: f64 = 6.0;

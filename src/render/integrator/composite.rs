@@ -1,4 +1,4 @@
-//! Emission-absorption compositing, front to back (REFERENCE.md
+//! Emission-absorption compositing, front to back (docs/formulas.md
 //! "Emission-absorption and compositing"). Each segment between two sample
 //! positions is represented by the field at its midpoint; its opacity is corrected
 //! from the transfer function's reference step to the segment's own length, so the
@@ -797,7 +797,7 @@ fn shaded<F: Field>(
         .extend(0.0)
 }
 
-/// Front-to-back accumulation (REFERENCE.md: `C' += (1 - A') C_i`, `A' += (1 - A') A_i`)
+/// Front-to-back accumulation (docs/formulas.md: `C' += (1 - A') C_i`, `A' += (1 - A') A_i`)
 /// in f64, with early ray termination. The transmittance `1 - A'` is carried as a
 /// product of its own, so that one sample waits on the one before it for a single
 /// multiplication (not a subtraction, a multiplication and an addition).

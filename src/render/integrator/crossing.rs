@@ -1,5 +1,5 @@
 //! First crossing of a threshold along the ray (depth coding, iso-surfaces;
-//! REFERENCE.md "Render modes"). The crossing is bracketed between two samples
+//! docs/formulas.md "Render modes"). The crossing is bracketed between two samples
 //! and refined on the interpolant (Illinois false position, which also converges on
 //! the jumps of nearest-neighbour reconstruction), not snapped to a sample.
 //! Skipping passes over the macrocells that cannot reach the threshold; the sample

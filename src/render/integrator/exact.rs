@@ -15,7 +15,7 @@
 //!   maximum that touches the threshold (a tangent ray, a double root) counts as a
 //!   hit at the maximum.
 //!
-//! The only error left is the reconstruction's (REFERENCE.md "Reconstruction"): the
+//! The only error left is the reconstruction's (docs/formulas.md "Reconstruction"): the
 //! result is exact for the trilinear interpolant, up to f64 round-off.
 //!
 //! Robustness of the walk: cell boundaries are the integer planes crossed between
@@ -84,7 +84,7 @@ pub struct Segment {
 
 impl Segment {
     /// The trilinear interpolant of `corners` (corner `(a, b, c)` at `a + 2b + 4c`)
-    /// along `u(s) = u0 + s du`, `u` the position inside the cell (REFERENCE.md
+    /// along `u(s) = u0 + s du`, `u` the position inside the cell (docs/formulas.md
     /// "Reconstruction"): interpolate along x (4 lines, linear in `s`), then y (2
     /// quadratics), then z (the cubic).
     pub fn from_corners(corners: [f32; 8], u0: [f64; 3], du: [f64; 3], t0: f64, len: f64) -> Self {

@@ -6,7 +6,7 @@
 //! ray's macrocells (when the pass skips empty space), passes over the samples of
 //! the cells the consumer says cannot change its result, and hands it the others in
 //! order. Exact passes ([`Exact`], `exact.rs`) walk the voxel cells instead.
-//! Formulas: REFERENCE.md "Render modes" and "Emission-absorption and compositing".
+//! Formulas: docs/formulas.md "Render modes" and "Emission-absorption and compositing".
 
 mod composite;
 mod crossing;
@@ -489,7 +489,7 @@ impl Batch {
 
 /// The jitter of one pixel's first sample, in `[0, 1)` of a step: a hash of the
 /// pass's seed, the view's pose (which identifies the frame and the eye) and the
-/// pixel, so it is the same whatever thread renders the pixel (REFERENCE.md
+/// pixel, so it is the same whatever thread renders the pixel (docs/formulas.md
 /// "Emission-absorption and compositing": a fixed per-pixel seed keeps frames
 /// reproducible).
 pub fn jitter_fraction(seed: u64, pose: [f64; 6], i: usize, j: usize) -> f64 {

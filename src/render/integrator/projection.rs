@@ -1,4 +1,4 @@
-//! MIP, MinIP, average and local MIP (REFERENCE.md "Render modes").
+//! MIP, MinIP, average and local MIP (docs/formulas.md "Render modes").
 //!
 //! Skipping: MIP passes over macrocells whose maximum cannot beat the running
 //! maximum (MinIP symmetrically), and walks only the part of a ray where a cell

@@ -1,4 +1,4 @@
-//! X-ray / look-through (REFERENCE.md "Render modes"): the line integral of the
+//! X-ray / look-through (docs/formulas.md "Render modes"): the line integral of the
 //! normalised value by the trapezoid rule, accumulated in f64; Beer-Lambert for the
 //! absorbed and transmitted images. Skips all-zero macrocells.
 

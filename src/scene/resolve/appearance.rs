@@ -251,7 +251,7 @@ fn builtin_transfers() -> BTreeMap<String, Transfer> {
     )
     .expect("built-in transfer function is valid");
     m.insert("grey".to_string(), Transfer::OneD(Arc::new(grey)));
-    // The example of SCENES.md.
+    // The example of docs/scene-reference.md.
     let bone = Transfer1D::new(
         vec![
             (0.0, [0.91, 0.70, 0.61]),
