@@ -680,7 +680,7 @@ fn bench_accuracy_quick_writes_its_report() {
     );
     // where rays become opaque the stop's error outweighs the step's: a coarse step
     // with a later stop is closer to the truth than a fine one with the default stop
-    // (the README's advice for composites, from the peer benchmark)
+    // (the advice for composites of docs/performance.md, from the peer benchmark)
     let (coarse, fine) = (
         rms("sphere", "early 0.995", "ramp", "1"),
         rms("sphere", "early 0.99", "ramp", "0.25"),

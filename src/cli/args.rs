@@ -19,7 +19,7 @@ pub enum Command {
     Render(RenderArgs),
     /// Validate a scene and print its plan without rendering.
     Check(CheckArgs),
-    /// Describe a volume (a .nrrd/.nhdr file, or the volume of a scene .toml).
+    /// Describe a volume (NRRD, NIfTI, MetaImage, a DICOM folder, or the volume of a scene .toml).
     Info(InfoArgs),
     /// Write the value histogram and the value x gradient-magnitude histogram of a
     /// volume (or of a scene's volume, with its window, iso values, thresholds and
@@ -181,7 +181,8 @@ pub struct CheckArgs {
 
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// A .nrrd or .nhdr file, or a scene .toml whose volume to describe.
+    /// A volume file (.nrrd/.nhdr, .nii/.nii.gz, .mha/.mhd), a DICOM folder, or a scene
+    /// .toml whose volume to describe.
     pub volume: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]

@@ -4,7 +4,7 @@
 //! mutated example scenes through the scene parser, the header and the plan (what
 //! `volcast check` does), about two seconds each, every panic caught and reported
 //! with the case that caused it. The long run, every case its own process under a
-//! timeout and a memory limit, is `examples/fuzz.rs` (see the README).
+//! timeout and a memory limit, is `examples/fuzz.rs` (see docs/testing.md).
 
 mod mutate;
 
