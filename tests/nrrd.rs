@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use volcast::volume::nrrd::{self, DataFile, Encoding, Endian, NrrdHeader, Space};
+use volcast::volume::nrrd::{self, DataFile, Encoding, Endian, NrrdHeader, NrrdHeaderExt, Space};
 use volcast::volume::{Limits, ScalarType, VolumeData, VolumeError, VolumeSource};
 
 use crate::util::{root, shared_data};

@@ -9,7 +9,7 @@ use std::path::Path;
 use super::data::NumberFormat;
 use super::header::RawHeader;
 use super::{DataFile, Encoding, Endian, NrrdHeader, Space};
-use crate::volume::{ScalarType, VolumeError};
+use crate::{Error, ScalarType};
 
 /// Why a field descriptor was refused.
 pub(super) enum FieldError {
@@ -179,12 +179,12 @@ impl Parsed {
 
 /// Interprets the header lines: duplicates and missing required fields are errors,
 /// then every field is parsed in table order.
-pub(super) fn parse_fields(path: &Path, raw: &RawHeader) -> Result<Parsed, VolumeError> {
+pub(super) fn parse_fields(path: &Path, raw: &RawHeader) -> Result<Parsed, Error> {
     let mut first_line = [0usize; FIELDS.len()];
     for fl in &raw.fields {
         let first = &mut first_line[fl.field];
         if *first != 0 {
-            return Err(VolumeError::Header {
+            return Err(Error::Header {
                 path: path.to_path_buf(),
                 line: fl.line,
                 message: format!(
@@ -201,7 +201,7 @@ pub(super) fn parse_fields(path: &Path, raw: &RawHeader) -> Result<Parsed, Volum
         .filter(|name| field_index(name).is_none_or(|i| first_line[i] == 0))
         .collect();
     if !missing.is_empty() {
-        return Err(VolumeError::Header {
+        return Err(Error::Header {
             path: path.to_path_buf(),
             line: 0,
             message: format!(
@@ -224,12 +224,12 @@ pub(super) fn parse_fields(path: &Path, raw: &RawHeader) -> Result<Parsed, Volum
         };
         let name = spec.names[0];
         (spec.parse)(&mut b, &fl.desc).map_err(|e| match e {
-            FieldError::Bad(m) => VolumeError::Header {
+            FieldError::Bad(m) => Error::Header {
                 path: path.to_path_buf(),
                 line: fl.line,
                 message: format!("{name}: {m}"),
             },
-            FieldError::Unsupported(m) => VolumeError::Unsupported {
+            FieldError::Unsupported(m) => Error::Unsupported {
                 path: path.to_path_buf(),
                 message: format!("line {}: {name}: {m}", fl.line),
             },
