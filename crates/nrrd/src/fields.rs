@@ -7,7 +7,6 @@
 use std::path::Path;
 
 use super::data::NumberFormat;
-use super::header::RawHeader;
 use super::{DataFile, Encoding, Endian, NrrdHeader, Space};
 use crate::{Error, ScalarType};
 
@@ -175,6 +174,34 @@ impl Parsed {
     pub fn has(&self, name: &str) -> bool {
         self.line(name) != 0
     }
+}
+
+/// One `<field>: <desc>` line.
+#[derive(Debug)]
+pub(super) struct FieldLine {
+    /// 1-based line number.
+    pub line: usize,
+    /// Index into [`FIELDS`].
+    pub field: usize,
+    /// The descriptor after `: `.
+    pub desc: String,
+}
+
+/// The header as text, split into its parts but not yet interpreted.
+#[derive(Debug, Default)]
+pub(super) struct RawHeader {
+    /// Format version from the magic (1..=5).
+    pub version: u8,
+    /// Field lines in file order.
+    pub fields: Vec<FieldLine>,
+    /// `#` comments.
+    pub comments: Vec<String>,
+    /// `key:=value` pairs, unescaped, with their line numbers.
+    pub key_values: Vec<(usize, String, String)>,
+    /// File names after `data file: LIST`, with their line numbers.
+    pub list_names: Vec<(usize, String)>,
+    /// Byte offset just after the blank line, when the header ended with one.
+    pub data_offset: Option<u64>,
 }
 
 /// Interprets the header lines: duplicates and missing required fields are errors,

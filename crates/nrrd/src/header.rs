@@ -4,7 +4,7 @@
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
-use super::fields::{self, field_index};
+use super::fields::{self, field_index, FieldLine, RawHeader};
 use super::{check, DataFile, NrrdHeader};
 use crate::{file, Error, Reader};
 
@@ -12,34 +12,6 @@ use crate::{file, Error, Reader};
 const MAX_LINE: u64 = 1 << 20;
 /// Largest header accepted, in bytes.
 const MAX_HEADER: u64 = 64 << 20;
-
-/// One `<field>: <desc>` line.
-#[derive(Debug)]
-pub(super) struct FieldLine {
-    /// 1-based line number.
-    pub line: usize,
-    /// Index into [`fields::FIELDS`].
-    pub field: usize,
-    /// The descriptor after `: `.
-    pub desc: String,
-}
-
-/// The header as text, split into its parts but not yet interpreted.
-#[derive(Debug, Default)]
-pub(super) struct RawHeader {
-    /// Format version from the magic (1..=5).
-    pub version: u8,
-    /// Field lines in file order.
-    pub fields: Vec<FieldLine>,
-    /// `#` comments.
-    pub comments: Vec<String>,
-    /// `key:=value` pairs, unescaped, with their line numbers.
-    pub key_values: Vec<(usize, String, String)>,
-    /// File names after `data file: LIST`, with their line numbers.
-    pub list_names: Vec<(usize, String)>,
-    /// Byte offset just after the blank line, when the header ended with one.
-    pub data_offset: Option<u64>,
-}
 
 /// Reads, parses and checks the header of `path`; also returns where attached data
 /// starts (`None` for detached data).

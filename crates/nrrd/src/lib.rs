@@ -548,3 +548,8 @@ pub enum ReadReason {
     /// The data is split over this many files (`data file` pattern or `LIST`).
     DataFiles(u64),
 }
+
+// The README's example compiles as a doc test.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;

@@ -1,4 +1,4 @@
-//! NRRD volumes: the [`nrrd`](::nrrd) crate reads and writes the files; this adapter
+//! NRRD volumes: the `nrrd` crate ([`::nrrd`]) reads and writes the files; this adapter
 //! gives it volcast's memory limit and `--confine` check, turns its data and errors
 //! into volcast's, and makes the 3D [`VolumeHeader`] of an N-D header ([`volume_header`]).
 
