@@ -269,3 +269,40 @@ fn round_trip_every_type_encoding_and_endian() {
         }
     }
 }
+
+// ------------------------------------------------------------------ bad files
+
+/// Every header of tests/bad/nrrd that is bad as a NRRD file (the others are valid
+/// files that volcast refuses as 3D volumes) is refused, with a message naming it.
+#[test]
+fn bad_files_are_refused_with_a_message_naming_them() {
+    // valid NRRD files, bad only as 3D volumes
+    const VALID_NRRD: &[&str] = &[
+        "directions_degenerate.nrrd",
+        "directions_none_on_axis.nrrd",
+        "four_d_not_droppable.nrrd",
+        "space_time_4d.nrrd",
+    ];
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/bad/nrrd");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            matches!(
+                p.extension().and_then(|e| e.to_str()),
+                Some("nrrd" | "nhdr")
+            )
+        })
+        .collect();
+    files.sort();
+    assert!(files.len() >= 60, "only {} bad files", files.len());
+    let mut accepted = Vec::new();
+    for path in files {
+        let name = path.file_name().unwrap().to_str().unwrap().to_string();
+        match Reader::new().max_bytes(1 << 30).read(&path) {
+            Ok(_) => accepted.push(name),
+            Err(e) => assert!(e.to_string().contains(&name), "{name}: {e}"),
+        }
+    }
+    assert_eq!(accepted, VALID_NRRD, "accepted");
+}
