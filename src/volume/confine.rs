@@ -13,16 +13,11 @@
 //!   (`/proc/self/fd`), so a link swapped in between the check and the open cannot
 //!   lead outside either. (Volumes are loaded on the calling thread.)
 
-use std::cell::RefCell;
-use std::fs::File;
 use std::io;
 use std::path::{Component, Path, PathBuf};
 
+use super::mapped::set_confinement;
 use super::{VolumeError, VolumeSource};
-
-thread_local! {
-    static ROOT: RefCell<Option<PathBuf>> = const { RefCell::new(None) };
-}
 
 /// The folder every input must lie in, resolved (absolute, no links).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -90,18 +85,11 @@ pub fn check_source(source: &VolumeSource, root: &Root) -> Result<(), VolumeErro
     }
     root.check_file(path, "the volume")?;
     let _scope = Scope::enter(root);
-    let files = match source {
-        VolumeSource::Nrrd(p) => super::nrrd::input_files(p)?,
-        VolumeSource::MetaImage(p) => super::metaimage::input_files(p)?,
-        VolumeSource::Dicom(d) => {
-            // every slice, with the folder itself first
-            let mut files = vec![d.dir.clone()];
-            files.extend(d.input_files()?);
-            files
-        }
-        _ => Vec::new(),
-    };
-    for f in files.iter().skip(1) {
+    let files = source.input_files()?;
+    // the first file of the others is the volume's path, checked above; a DICOM
+    // series lists only its slices
+    let skip = usize::from(!matches!(source, VolumeSource::Dicom(_)));
+    for f in files.iter().skip(skip) {
         root.check_file(f, &format!("a data file named by {}", path.display()))?;
     }
     Ok(())
@@ -162,62 +150,22 @@ pub struct Scope {
 impl Scope {
     /// Confines this thread's volume reads to `root` until the scope is dropped.
     pub fn enter(root: &Root) -> Scope {
-        let previous = ROOT.with(|r| r.replace(Some(root.0.clone())));
+        let previous = set_confinement(Some(root.0.clone()));
         Scope { previous }
     }
 }
 
 impl Drop for Scope {
     fn drop(&mut self) {
-        let previous = self.previous.take();
-        ROOT.with(|r| *r.borrow_mut() = previous);
-    }
-}
-
-/// Checks a volume file just opened from `path` against this thread's scope, if any:
-/// the path of the open file itself must lie in the root.
-pub(crate) fn check_opened(path: &Path, file: &File) -> io::Result<()> {
-    let Some(root) = ROOT.with(|r| r.borrow().clone()) else {
-        return Ok(());
-    };
-    let real = opened_path(file).or_else(|| path.canonicalize().ok());
-    match real {
-        Some(real) if real.starts_with(&root) => Ok(()),
-        Some(real) => Err(io::Error::new(
-            io::ErrorKind::PermissionDenied,
-            format!(
-                "resolves to {}, outside {} (--confine)",
-                real.display(),
-                root.display()
-            ),
-        )),
-        None => Err(io::Error::new(
-            io::ErrorKind::PermissionDenied,
-            format!(
-                "cannot tell where it lies, so it is not read (--confine {})",
-                root.display()
-            ),
-        )),
-    }
-}
-
-/// The path the kernel reports for an open file (Linux).
-fn opened_path(file: &File) -> Option<PathBuf> {
-    #[cfg(unix)]
-    {
-        use std::os::fd::AsRawFd;
-        std::fs::read_link(format!("/proc/self/fd/{}", file.as_raw_fd())).ok()
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = file;
-        None
+        set_confinement(self.previous.take());
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::volume::mapped::check_opened;
+    use std::fs::File;
 
     #[test]
     fn output_folders_resolve_before_they_exist() {

@@ -21,42 +21,26 @@
 //!
 //! # Soundness
 //!
-//! [`memmap2::Mmap::map`] is `unsafe` because Rust assumes that memory behind a `&[u8]`
-//! does not change, while another process may write to, or shorten, the file while it
-//! is mapped. volcast accepts this the way other tools that map their inputs do
-//! (databases, `ripgrep`, image viewers):
+//! The mapping itself is made by [`nrrd::file::map`], whose documentation says what
+//! makes it sound and where that stops (a file truncated while mapped).
 //!
-//! - the mapping is read-only and private (`PROT_READ`, `MAP_PRIVATE`): volcast never
-//!   writes through it;
-//! - its bytes are only ever copied out as plain numbers ([`Voxels`](super::Voxels) reads each voxel
-//!   with `read_unaligned`), and every bit pattern is a valid voxel of every type, so a
-//!   concurrent write by another process yields other voxel values, that is a wrong
-//!   image, not a memory-safety failure (formally, memory changing behind a shared
-//!   reference is undefined behaviour: this is the trade-off every mmap user makes);
-//! - only regular files are mapped (a FIFO, device, socket or directory is refused,
-//!   judged from the opened file, not the path), and the file's length is checked on
-//!   the opened file right before mapping, so the mapping never extends past the end
-//!   of the file as it was then;
-//! - **known limit**: if another process truncates the file while volcast has it
-//!   mapped, touching a page past the new end raises `SIGBUS` and the process dies
-//!   (there is no portable way to turn that into an error). Do not shorten or rewrite
-//!   a volume while volcast renders it; replacing it by a new file (write, then rename)
-//!   is safe, since the mapping keeps the old file's pages.
+//! # Confinement
+//!
+//! This is also the one place volume files are opened: while a
+//! [`confine::Scope`](super::confine::Scope) is active on a thread, every file opened
+//! here (and by the NRRD reader, through its open check) must lie in its folder.
 
+use std::cell::RefCell;
 use std::fmt;
 use std::fs::{File, Metadata};
 use std::io;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
-use super::nrrd::Encoding;
+pub use nrrd::file::{file_kind, is_native_order, open_nonblocking};
+use nrrd::Encoding;
+pub use nrrd::Mapped as MappedVoxels;
+
 use super::{ScalarType, VolumeError};
-
-/// True when `ty` elements stored in the given byte order can be used as they are on
-/// this machine (single bytes, or the machine's byte order).
-pub fn is_native_order(ty: ScalarType, little_endian: bool) -> bool {
-    ty.size() == 1 || little_endian == cfg!(target_endian = "little")
-}
 
 /// How [`VolumeSource::load`](super::VolumeSource::load) will hold a volume's voxels,
 /// known from the source and its header before loading (see
@@ -163,77 +147,11 @@ impl fmt::Display for ReadReason {
     }
 }
 
-/// Voxels of one element type mapped read-only from a file (see the module docs for
-/// what is mapped and why that is sound). Cloning shares the mapping.
-#[derive(Clone)]
-pub struct MappedVoxels {
-    scalar_type: ScalarType,
-    map: Arc<memmap2::Mmap>,
-    path: PathBuf,
-    offset: u64,
-}
-
-impl MappedVoxels {
-    /// The element type.
-    pub fn scalar_type(&self) -> ScalarType {
-        self.scalar_type
-    }
-
-    /// The data's bytes, in native byte order, at whatever alignment the file gave them.
-    pub fn bytes(&self) -> &[u8] {
-        &self.map
-    }
-
-    /// The mapped file.
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-
-    /// Where the data starts in the file.
-    pub fn offset(&self) -> u64 {
-        self.offset
-    }
-
-    /// Number of elements.
-    pub fn len(&self) -> usize {
-        self.map.len() / self.scalar_type.size()
-    }
-
-    /// True when there are no elements (never, for a mapped volume).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-}
-
-impl fmt::Debug for MappedVoxels {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("MappedVoxels")
-            .field("scalar_type", &self.scalar_type)
-            .field("path", &self.path)
-            .field("offset", &self.offset)
-            .field("len", &self.len())
-            .finish()
-    }
-}
-
-/// Opens `path` for reading without blocking (a FIFO would otherwise wait for a
-/// writer before its type could be checked).
-pub(crate) fn open_nonblocking(path: &Path) -> io::Result<File> {
-    let mut options = std::fs::OpenOptions::new();
-    options.read(true);
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::OpenOptionsExt;
-        options.custom_flags(libc::O_NONBLOCK);
-    }
-    options.open(path)
-}
-
 /// Opens a volume file (header or data) for reading without blocking; inside a
 /// [`confine::Scope`](super::confine::Scope), the opened file must lie in its folder.
 pub(crate) fn open_for_mapping(path: &Path) -> io::Result<File> {
-    let file = open_nonblocking(path)?;
-    super::confine::check_opened(path, &file)?;
+    let file = nrrd::file::open_nonblocking(path)?;
+    check_opened(path, &file)?;
     Ok(file)
 }
 
@@ -259,46 +177,7 @@ pub(crate) fn check_regular_file(path: &Path, meta: &Metadata) -> Result<(), Vol
 
 /// An error unless `meta` (of `path`, holding `what`) describes a regular file.
 fn check_regular(path: &Path, meta: &Metadata, what: &str) -> Result<(), VolumeError> {
-    let ft = meta.file_type();
-    if ft.is_file() {
-        return Ok(());
-    }
-    let kind = file_kind(&ft);
-    Err(VolumeError::Unsupported {
-        path: path.to_path_buf(),
-        message: format!("is {kind}, not a regular file: {what} is read only from regular files"),
-    })
-}
-
-/// "a directory", "a FIFO (named pipe)", "a character device", ... for a file that is
-/// not regular.
-pub(crate) fn file_kind(ft: &std::fs::FileType) -> &'static str {
-    if ft.is_dir() {
-        "a directory"
-    } else {
-        special_kind(ft)
-    }
-}
-
-#[cfg(unix)]
-fn special_kind(ft: &std::fs::FileType) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
-    if ft.is_fifo() {
-        "a FIFO (named pipe)"
-    } else if ft.is_block_device() {
-        "a block device"
-    } else if ft.is_char_device() {
-        "a character device"
-    } else if ft.is_socket() {
-        "a socket"
-    } else {
-        "a special file"
-    }
-}
-
-#[cfg(not(unix))]
-fn special_kind(_: &std::fs::FileType) -> &'static str {
-    "a special file"
+    Ok(nrrd::file::check_regular(path, meta, what)?)
 }
 
 /// Maps `bytes` bytes of `file` (at `path`) from byte `offset` as elements of `ty`.
@@ -312,48 +191,89 @@ pub(crate) fn map(
     offset: u64,
     bytes: u64,
 ) -> Result<MappedVoxels, VolumeError> {
-    let io_err = |source| VolumeError::Io {
-        path: path.to_path_buf(),
-        source,
+    Ok(nrrd::file::map(file, path, ty, offset, bytes)?)
+}
+
+thread_local! {
+    /// The folder this thread's volume reads are confined to, while a scope is active.
+    static ROOT: RefCell<Option<PathBuf>> = const { RefCell::new(None) };
+}
+
+/// Confines this thread's volume reads to the resolved folder `root` (or ends that,
+/// with `None`); returns the previous setting.
+pub(crate) fn set_confinement(root: Option<PathBuf>) -> Option<PathBuf> {
+    ROOT.with(|r| r.replace(root))
+}
+
+/// Checks a volume file just opened from `path` against this thread's confinement,
+/// if any: the path of the open file itself must lie in the root.
+pub(crate) fn check_opened(path: &Path, file: &File) -> io::Result<()> {
+    let Some(root) = ROOT.with(|r| r.borrow().clone()) else {
+        return Ok(());
     };
-    let meta = file.metadata().map_err(io_err)?;
-    check_regular_file(path, &meta)?;
-    let end = offset.checked_add(bytes);
-    if end.is_none_or(|end| end > meta.len()) {
-        return Err(VolumeError::Data {
-            path: path.to_path_buf(),
-            message: format!(
-                "file is {} bytes, shorter than the {bytes} bytes of data at offset {offset} \
-                 (did it change while being opened?)",
-                meta.len()
+    let real = opened_path(file).or_else(|| path.canonicalize().ok());
+    match real {
+        Some(real) if real.starts_with(&root) => Ok(()),
+        Some(real) => Err(io::Error::new(
+            io::ErrorKind::PermissionDenied,
+            format!(
+                "resolves to {}, outside {} (--confine)",
+                real.display(),
+                root.display()
             ),
-        });
+        )),
+        None => Err(io::Error::new(
+            io::ErrorKind::PermissionDenied,
+            format!(
+                "cannot tell where it lies, so it is not read (--confine {})",
+                root.display()
+            ),
+        )),
     }
-    let len = usize::try_from(bytes).map_err(|_| VolumeError::TooLarge {
-        what: format!("mapping {}", path.display()),
-        bytes: Some(bytes),
-        limit: usize::MAX as u64,
-    })?;
-    debug_assert!(len % ty.size() == 0 && len > 0);
-    // SAFETY: a read-only, private mapping of a regular file whose length covers the
-    // mapped range (checked just above on the open file). Its bytes are only read, as
-    // plain numbers for which every bit pattern is valid. What remains is that another
-    // process may change or truncate the file meanwhile: see the module docs
-    // (changed values only change the image; truncation raises SIGBUS, a documented
-    // limit).
-    let map = unsafe {
-        memmap2::MmapOptions::new()
-            .offset(offset)
-            .len(len)
-            .map(file)
+}
+
+/// The path the kernel reports for an open file (Linux).
+fn opened_path(file: &File) -> Option<PathBuf> {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsRawFd;
+        std::fs::read_link(format!("/proc/self/fd/{}", file.as_raw_fd())).ok()
     }
-    .map_err(io_err)?;
-    Ok(MappedVoxels {
-        scalar_type: ty,
-        map: Arc::new(map),
-        path: path.to_path_buf(),
-        offset,
-    })
+    #[cfg(not(unix))]
+    {
+        let _ = file;
+        None
+    }
+}
+
+impl From<nrrd::ReadReason> for ReadReason {
+    fn from(r: nrrd::ReadReason) -> ReadReason {
+        match r {
+            nrrd::ReadReason::ByteOrder => ReadReason::ByteOrder,
+            nrrd::ReadReason::Encoding(e) => ReadReason::Encoding(e),
+            nrrd::ReadReason::DataFiles(n) => ReadReason::DataFiles(n),
+        }
+    }
+}
+
+impl From<nrrd::Storage> for Storage {
+    fn from(s: nrrd::Storage) -> Storage {
+        match s {
+            nrrd::Storage::Mapped {
+                path,
+                offset,
+                bytes,
+            } => Storage::Mapped {
+                path,
+                offset,
+                bytes,
+            },
+            nrrd::Storage::Read { bytes, reason } => Storage::Read {
+                bytes,
+                reason: reason.into(),
+            },
+        }
+    }
 }
 
 #[cfg(test)]

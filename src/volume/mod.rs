@@ -115,6 +115,33 @@ pub enum VolumeError {
     Invalid(String),
 }
 
+/// The crate's errors carry the same messages; only the limit's hints name volcast's
+/// flags.
+impl From<::nrrd::Error> for VolumeError {
+    fn from(e: ::nrrd::Error) -> VolumeError {
+        use ::nrrd::Error as E;
+        match e {
+            E::Io { path, source } => VolumeError::Io { path, source },
+            E::Header {
+                path,
+                line,
+                message,
+            } => VolumeError::Header {
+                path,
+                line,
+                message,
+            },
+            E::Data { path, message } => VolumeError::Data { path, message },
+            E::Unsupported { path, message } => VolumeError::Unsupported { path, message },
+            E::TooLarge { what, bytes, limit } => VolumeError::TooLarge { what, bytes, limit },
+            E::OutOfMemory { path, bytes } => VolumeError::OutOfMemory { path, bytes },
+            E::Invalid(message) => VolumeError::Invalid(message),
+            // the crate's enum is non-exhaustive: a future variant keeps its message
+            other => VolumeError::Invalid(other.to_string()),
+        }
+    }
+}
+
 fn line_suffix(line: usize) -> String {
     if line == 0 {
         String::new()
@@ -260,7 +287,7 @@ impl VolumeSource {
     /// Reads only what describes the volume: sizes, type, geometry.
     pub fn header(&self) -> Result<VolumeHeader, VolumeError> {
         match self {
-            VolumeSource::Nrrd(path) => nrrd::read_header(path)?.volume_header(path),
+            VolumeSource::Nrrd(path) => nrrd::volume_header(&nrrd::read_header(path)?, path),
             VolumeSource::Nifti(spec) => spec.header(),
             VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }.header(),
             VolumeSource::Dicom(spec) => spec.header(),
@@ -308,15 +335,22 @@ impl VolumeSource {
     /// file; none for a synthetic field), stamped now (size and modification time;
     /// reads only the NRRD header).
     pub fn stamps(&self) -> Result<Vec<FileStamp>, VolumeError> {
-        let files = match self {
+        let files = self.input_files()?;
+        files.iter().map(|p| FileStamp::of(p)).collect()
+    }
+
+    /// Every file a load reads: a NRRD or MetaImage header first, then its data
+    /// files; the NIfTI or raw file; each slice of a DICOM series; none for a
+    /// synthetic field. Reads only the headers.
+    pub fn input_files(&self) -> Result<Vec<PathBuf>, VolumeError> {
+        Ok(match self {
             VolumeSource::Nrrd(path) => nrrd::input_files(path)?,
             VolumeSource::Nifti(spec) => vec![spec.path.clone()],
             VolumeSource::MetaImage(path) => metaimage::input_files(path)?,
             VolumeSource::Dicom(spec) => spec.input_files()?,
             VolumeSource::Raw(spec) => vec![spec.path.clone()],
             VolumeSource::Synthetic(_) => Vec::new(),
-        };
-        files.iter().map(|p| FileStamp::of(p)).collect()
+        })
     }
 
     /// [`VolumeSource::load`], also returning the volume's identity: the files, stamped
@@ -331,7 +365,7 @@ impl VolumeSource {
         let (volume, hash) = match self {
             VolumeSource::Nrrd(path) => {
                 let (header, data, hash) = nrrd::read_hashed(path, limits)?;
-                let vh = header.volume_header(path)?;
+                let vh = nrrd::volume_header(&header, path)?;
                 (Volume { header: vh, data }, Some(hash))
             }
             VolumeSource::Nifti(spec) => spec.load_hashed(limits, true)?,
@@ -419,7 +453,7 @@ pub struct VolumeIdentity {
 /// Reads a NRRD file as a 3D volume.
 pub fn load_nrrd(path: &Path, limits: &Limits) -> Result<Volume, VolumeError> {
     let (header, data) = nrrd::read(path, limits)?;
-    let vh = header.volume_header(path)?;
+    let vh = nrrd::volume_header(&header, path)?;
     debug_assert_eq!(vh.voxel_count(), data.len());
     Ok(Volume { header: vh, data })
 }

@@ -8,8 +8,8 @@ use std::io::{BufReader, Seek, SeekFrom};
 use std::path::PathBuf;
 
 use super::mapped::{self, check_regular_file, is_native_order, open_for_mapping};
-use super::nrrd::{ElementSink, ReadError};
 use super::{Geometry, Limits, ScalarType, Storage, Volume, VolumeData, VolumeError, VolumeHeader};
+use nrrd::{ElementSink, ReadError};
 
 /// A raw file and the description the scene gives of it.
 #[derive(Clone, Debug, PartialEq)]
@@ -118,7 +118,7 @@ impl RawSpec {
         Ok((
             Volume {
                 header,
-                data: sink.finish(),
+                data: sink.finish().into(),
             },
             digest,
         ))

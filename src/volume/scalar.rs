@@ -3,136 +3,10 @@
 //! A volume keeps its data in the type it was stored in (an 8-bit volume costs one
 //! byte per voxel); samplers convert single voxels to `f32` when they read them.
 
-use std::fmt;
-
 use super::mapped::MappedVoxels;
 
 /// The element type of a volume or image, with the names the NRRD format uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ScalarType {
-    /// signed 8-bit integer
-    Int8,
-    /// unsigned 8-bit integer
-    Uint8,
-    /// signed 16-bit integer
-    Int16,
-    /// unsigned 16-bit integer
-    Uint16,
-    /// signed 32-bit integer
-    Int32,
-    /// unsigned 32-bit integer
-    Uint32,
-    /// signed 64-bit integer
-    Int64,
-    /// unsigned 64-bit integer
-    Uint64,
-    /// IEEE 754 single precision
-    Float32,
-    /// IEEE 754 double precision
-    Float64,
-}
-
-impl ScalarType {
-    /// Every type, in NRRD's order.
-    pub const ALL: [ScalarType; 10] = [
-        ScalarType::Int8,
-        ScalarType::Uint8,
-        ScalarType::Int16,
-        ScalarType::Uint16,
-        ScalarType::Int32,
-        ScalarType::Uint32,
-        ScalarType::Int64,
-        ScalarType::Uint64,
-        ScalarType::Float32,
-        ScalarType::Float64,
-    ];
-
-    /// Size of one element in bytes.
-    pub fn size(self) -> usize {
-        match self {
-            ScalarType::Int8 | ScalarType::Uint8 => 1,
-            ScalarType::Int16 | ScalarType::Uint16 => 2,
-            ScalarType::Int32 | ScalarType::Uint32 | ScalarType::Float32 => 4,
-            ScalarType::Int64 | ScalarType::Uint64 | ScalarType::Float64 => 8,
-        }
-    }
-
-    /// The canonical NRRD name (`uint8`, `int16`, `float`, `double`, ...).
-    pub fn nrrd_name(self) -> &'static str {
-        match self {
-            ScalarType::Int8 => "int8",
-            ScalarType::Uint8 => "uint8",
-            ScalarType::Int16 => "int16",
-            ScalarType::Uint16 => "uint16",
-            ScalarType::Int32 => "int32",
-            ScalarType::Uint32 => "uint32",
-            ScalarType::Int64 => "int64",
-            ScalarType::Uint64 => "uint64",
-            ScalarType::Float32 => "float",
-            ScalarType::Float64 => "double",
-        }
-    }
-
-    /// Parses a type name: the short names used in scene files (`uint8`, `int16`,
-    /// `float32`, `float64`) and every alias the NRRD format defines (`uchar`,
-    /// `unsigned short int`, `longlong`, `float`, `double`, ...). Case-insensitive,
-    /// runs of whitespace count as one space.
-    pub fn parse(name: &str) -> Option<ScalarType> {
-        let norm: String = name
-            .split_whitespace()
-            .collect::<Vec<_>>()
-            .join(" ")
-            .to_ascii_lowercase();
-        Some(match norm.as_str() {
-            "signed char" | "int8" | "int8_t" | "i8" => ScalarType::Int8,
-            "uchar" | "unsigned char" | "uint8" | "uint8_t" | "u8" => ScalarType::Uint8,
-            "short" | "short int" | "signed short" | "signed short int" | "int16" | "int16_t"
-            | "i16" => ScalarType::Int16,
-            "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t" | "u16" => {
-                ScalarType::Uint16
-            }
-            "int" | "signed int" | "int32" | "int32_t" | "i32" => ScalarType::Int32,
-            "uint" | "unsigned int" | "uint32" | "uint32_t" | "u32" => ScalarType::Uint32,
-            "longlong"
-            | "long long"
-            | "long long int"
-            | "signed long long"
-            | "signed long long int"
-            | "int64"
-            | "int64_t"
-            | "i64" => ScalarType::Int64,
-            "ulonglong"
-            | "unsigned long long"
-            | "unsigned long long int"
-            | "uint64"
-            | "uint64_t"
-            | "u64" => ScalarType::Uint64,
-            "float" | "float32" | "f32" => ScalarType::Float32,
-            "double" | "float64" | "f64" => ScalarType::Float64,
-            _ => return None,
-        })
-    }
-
-    /// Entries of the normalisation table of this type (see [`Voxel::LUT_SIZE`]).
-    pub fn lut_size(self) -> usize {
-        match self {
-            ScalarType::Int8 | ScalarType::Uint8 => 256,
-            ScalarType::Int16 | ScalarType::Uint16 => 65536,
-            _ => 0,
-        }
-    }
-
-    /// True for the two floating-point types.
-    pub fn is_float(self) -> bool {
-        matches!(self, ScalarType::Float32 | ScalarType::Float64)
-    }
-}
-
-impl fmt::Display for ScalarType {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.nrrd_name())
-    }
-}
+pub use nrrd::ScalarType;
 
 mod sealed {
     /// Only this module's primitive types are voxels: samplers rely on their
@@ -705,6 +579,24 @@ impl VolumeData {
             ScalarType::Uint64 => VolumeData::U64(conv(values)),
             ScalarType::Float32 => VolumeData::F32(conv(values)),
             ScalarType::Float64 => VolumeData::F64(conv(values)),
+        }
+    }
+}
+
+impl From<nrrd::Data> for VolumeData {
+    fn from(d: nrrd::Data) -> VolumeData {
+        match d {
+            nrrd::Data::I8(v) => VolumeData::I8(v),
+            nrrd::Data::U8(v) => VolumeData::U8(v),
+            nrrd::Data::I16(v) => VolumeData::I16(v),
+            nrrd::Data::U16(v) => VolumeData::U16(v),
+            nrrd::Data::I32(v) => VolumeData::I32(v),
+            nrrd::Data::U32(v) => VolumeData::U32(v),
+            nrrd::Data::I64(v) => VolumeData::I64(v),
+            nrrd::Data::U64(v) => VolumeData::U64(v),
+            nrrd::Data::F32(v) => VolumeData::F32(v),
+            nrrd::Data::F64(v) => VolumeData::F64(v),
+            nrrd::Data::Mapped(m) => VolumeData::Mapped(m),
         }
     }
 }

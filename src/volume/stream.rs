@@ -7,8 +7,8 @@ use std::io::{self, Read};
 use std::path::Path;
 
 use super::mapped::{self, open_for_mapping};
-use super::nrrd::{ElementSink, ReadError};
 use super::{Limits, ScalarType, VolumeData, VolumeError};
+use nrrd::{ElementSink, ReadError};
 
 fn data_err(path: &Path, message: String) -> VolumeError {
     VolumeError::Data {
@@ -112,7 +112,7 @@ impl Decode<'_> {
             },
         })?;
         let digest = sink.hash();
-        Ok((sink.finish(), digest))
+        Ok((sink.finish().into(), digest))
     }
 
     /// An error if `r` holds one more byte after the elements.

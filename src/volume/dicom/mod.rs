@@ -32,11 +32,11 @@ use dicom_object::{DefaultDicomObject, OpenFileOptions};
 use glam::DVec3;
 
 use super::mapped::open_regular;
-use super::nrrd::{ElementSink, ReadError};
 use super::{
     Geometry, Limits, ReadReason, Rescale, ScalarType, Storage, Volume, VolumeData, VolumeError,
     VolumeHeader,
 };
+use nrrd::{ElementSink, ReadError};
 
 /// Most files a series folder may hold.
 const MAX_FILES: usize = 100_000;
@@ -597,7 +597,7 @@ impl DicomSpec {
         let data = if series.rescale.is_none() {
             VolumeData::F32(floats)
         } else {
-            sink.finish()
+            sink.finish().into()
         };
         Ok((Volume { header, data }, hasher.map(|h| h.digest128())))
     }

@@ -5,8 +5,8 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use super::NrrdHeader;
 use crate::volume::{Geometry, VolumeError, VolumeHeader};
+use ::nrrd::NrrdHeader;
 
 fn unsupported(path: &Path, message: String) -> VolumeError {
     VolumeError::Unsupported {
@@ -248,7 +248,7 @@ mod tests {
     #[test]
     fn two_d_becomes_one_slice() {
         let h = NrrdHeader::new(ScalarType::Float32, vec![5, 4]).with_spacings([2.0, 3.0]);
-        let v = h.volume_header(p()).unwrap();
+        let v = volume_header(&h, p()).unwrap();
         assert_eq!(v.sizes, [5, 4, 1]);
         assert_eq!(v.geometry, Geometry::from_spacing([2.0, 3.0, 1.0]));
     }
@@ -257,13 +257,13 @@ mod tests {
     fn drops_leading_non_spatial_size_one_axis() {
         let mut h = NrrdHeader::new(ScalarType::Uint8, vec![1, 4, 5, 6])
             .with_kinds(["scalar", "space", "space", "space"]);
-        assert_eq!(h.volume_header(p()).unwrap().sizes, [4, 5, 6]);
+        assert_eq!(volume_header(&h, p()).unwrap().sizes, [4, 5, 6]);
         h.kinds = None;
         h.sizes = vec![4, 5, 6, 1];
-        assert_eq!(h.volume_header(p()).unwrap().sizes, [4, 5, 6]);
+        assert_eq!(volume_header(&h, p()).unwrap().sizes, [4, 5, 6]);
         h.sizes = vec![4, 5, 6, 2];
         assert!(matches!(
-            h.volume_header(p()),
+            volume_header(&h, p()),
             Err(VolumeError::Unsupported { .. })
         ));
     }
@@ -274,7 +274,7 @@ mod tests {
         h.space_dimension = Some(2);
         h.space_directions = Some(vec![Some(vec![0.5, 0.0]), Some(vec![0.0, 2.0])]);
         h.space_origin = Some(vec![1.0, -1.0]);
-        let g = h.volume_header(p()).unwrap().geometry;
+        let g = volume_header(&h, p()).unwrap().geometry;
         assert_eq!(
             g.axes,
             [
@@ -295,7 +295,7 @@ mod tests {
             Some(vec![2.0, 0.0, 0.0]),
             Some(vec![0.0, 0.0, 1.0]),
         ]);
-        let e = h.volume_header(p()).unwrap_err();
+        let e = volume_header(&h, p()).unwrap_err();
         assert!(matches!(e, VolumeError::Header { .. }), "{e}");
         assert!(
             e.to_string().starts_with("v.nrrd: degenerate geometry"),
@@ -306,14 +306,12 @@ mod tests {
     #[test]
     fn inconsistent_headers_built_in_code_are_errors() {
         let h = NrrdHeader::new(ScalarType::Uint8, vec![2, 2, 2]).with_kinds(["RGBA-color"]);
-        assert!(h.volume_header(p()).is_err());
+        assert!(volume_header(&h, p()).is_err());
         let mut h = NrrdHeader::new(ScalarType::Uint8, vec![2, 2, 2]);
         h.space_dimension = Some(3);
         h.space_directions = Some(vec![Some(vec![1.0]), Some(vec![0.0, 1.0, 0.0]), None]);
-        assert!(h.volume_header(p()).is_err());
-        assert!(NrrdHeader::new(ScalarType::Uint8, vec![])
-            .volume_header(p())
-            .is_err());
+        assert!(volume_header(&h, p()).is_err());
+        assert!(volume_header(&NrrdHeader::new(ScalarType::Uint8, vec![]), p()).is_err());
     }
 
     #[test]
@@ -325,9 +323,9 @@ mod tests {
             Some(vec![1.0, 0.0, 0.0]),
             Some(vec![0.0, 1.0, 0.0]),
         ]);
-        let g = h.volume_header(p()).unwrap().geometry;
+        let g = volume_header(&h, p()).unwrap().geometry;
         assert_eq!(g.axes[0], DVec3::Z);
         h.sizes[0] = 3;
-        assert!(h.volume_header(p()).is_err());
+        assert!(volume_header(&h, p()).is_err());
     }
 }

@@ -7,9 +7,8 @@
 use std::path::Path;
 
 use super::data::NumberFormat;
-use super::header::RawHeader;
 use super::{DataFile, Encoding, Endian, NrrdHeader, Space};
-use crate::volume::{ScalarType, VolumeError};
+use crate::{Error, ScalarType};
 
 /// Why a field descriptor was refused.
 pub(super) enum FieldError {
@@ -177,14 +176,42 @@ impl Parsed {
     }
 }
 
+/// One `<field>: <desc>` line.
+#[derive(Debug)]
+pub(super) struct FieldLine {
+    /// 1-based line number.
+    pub line: usize,
+    /// Index into [`FIELDS`].
+    pub field: usize,
+    /// The descriptor after `: `.
+    pub desc: String,
+}
+
+/// The header as text, split into its parts but not yet interpreted.
+#[derive(Debug, Default)]
+pub(super) struct RawHeader {
+    /// Format version from the magic (1..=5).
+    pub version: u8,
+    /// Field lines in file order.
+    pub fields: Vec<FieldLine>,
+    /// `#` comments.
+    pub comments: Vec<String>,
+    /// `key:=value` pairs, unescaped, with their line numbers.
+    pub key_values: Vec<(usize, String, String)>,
+    /// File names after `data file: LIST`, with their line numbers.
+    pub list_names: Vec<(usize, String)>,
+    /// Byte offset just after the blank line, when the header ended with one.
+    pub data_offset: Option<u64>,
+}
+
 /// Interprets the header lines: duplicates and missing required fields are errors,
 /// then every field is parsed in table order.
-pub(super) fn parse_fields(path: &Path, raw: &RawHeader) -> Result<Parsed, VolumeError> {
+pub(super) fn parse_fields(path: &Path, raw: &RawHeader) -> Result<Parsed, Error> {
     let mut first_line = [0usize; FIELDS.len()];
     for fl in &raw.fields {
         let first = &mut first_line[fl.field];
         if *first != 0 {
-            return Err(VolumeError::Header {
+            return Err(Error::Header {
                 path: path.to_path_buf(),
                 line: fl.line,
                 message: format!(
@@ -201,7 +228,7 @@ pub(super) fn parse_fields(path: &Path, raw: &RawHeader) -> Result<Parsed, Volum
         .filter(|name| field_index(name).is_none_or(|i| first_line[i] == 0))
         .collect();
     if !missing.is_empty() {
-        return Err(VolumeError::Header {
+        return Err(Error::Header {
             path: path.to_path_buf(),
             line: 0,
             message: format!(
@@ -224,12 +251,12 @@ pub(super) fn parse_fields(path: &Path, raw: &RawHeader) -> Result<Parsed, Volum
         };
         let name = spec.names[0];
         (spec.parse)(&mut b, &fl.desc).map_err(|e| match e {
-            FieldError::Bad(m) => VolumeError::Header {
+            FieldError::Bad(m) => Error::Header {
                 path: path.to_path_buf(),
                 line: fl.line,
                 message: format!("{name}: {m}"),
             },
-            FieldError::Unsupported(m) => VolumeError::Unsupported {
+            FieldError::Unsupported(m) => Error::Unsupported {
                 path: path.to_path_buf(),
                 message: format!("line {}: {name}: {m}", fl.line),
             },

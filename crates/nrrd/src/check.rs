@@ -6,10 +6,10 @@ use std::path::Path;
 use super::data::file_count;
 use super::fields::Parsed;
 use super::{DataFile, Encoding};
-use crate::volume::VolumeError;
+use crate::Error;
 
-fn err(path: &Path, line: usize, message: String) -> VolumeError {
-    VolumeError::Header {
+fn err(path: &Path, line: usize, message: String) -> Error {
+    Error::Header {
         path: path.to_path_buf(),
         line,
         message,
@@ -17,7 +17,7 @@ fn err(path: &Path, line: usize, message: String) -> VolumeError {
 }
 
 /// Checks a parsed header for consistency.
-pub(super) fn check_header(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
+pub(super) fn check_header(path: &Path, p: &Parsed) -> Result<(), Error> {
     check_endian(path, p)?;
     check_byte_skip(path, p)?;
     check_spacings_vs_directions(path, p)?;
@@ -25,7 +25,7 @@ pub(super) fn check_header(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
 }
 
 /// `endian` is required when the stored bytes of multi-byte elements are visible.
-fn check_endian(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
+fn check_endian(path: &Path, p: &Parsed) -> Result<(), Error> {
     let h = &p.header;
     if h.scalar_type.size() > 1 && h.encoding.endian_matters() && !p.has("endian") {
         return Err(err(
@@ -42,7 +42,7 @@ fn check_endian(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
 }
 
 /// `byte skip: -1` only makes sense for raw data (the spec; teem's `_nrrdByteSkipSkip`).
-fn check_byte_skip(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
+fn check_byte_skip(path: &Path, p: &Parsed) -> Result<(), Error> {
     let h = &p.header;
     if h.byte_skip < 0 && h.encoding != Encoding::Raw {
         return Err(err(
@@ -58,7 +58,7 @@ fn check_byte_skip(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
 }
 
 /// An axis has either a spacing or a space direction, not both.
-fn check_spacings_vs_directions(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
+fn check_spacings_vs_directions(path: &Path, p: &Parsed) -> Result<(), Error> {
     let h = &p.header;
     let (Some(spacings), Some(dirs)) = (&h.spacings, &h.space_directions) else {
         return Ok(());
@@ -81,7 +81,7 @@ fn check_spacings_vs_directions(path: &Path, p: &Parsed) -> Result<(), VolumeErr
 
 /// Several data files must split the elements into equal pieces (teem's
 /// `_nrrdDataFNCheck`).
-fn check_data_files(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
+fn check_data_files(path: &Path, p: &Parsed) -> Result<(), Error> {
     let h = &p.header;
     let line = p.line("data file");
     let dim = h.dimension();
@@ -91,7 +91,7 @@ fn check_data_files(path: &Path, p: &Parsed) -> Result<(), VolumeError> {
         _ => false,
     };
     if stdin {
-        return Err(VolumeError::Unsupported {
+        return Err(Error::Unsupported {
             path: path.to_path_buf(),
             message: format!("line {line}: data file \"-\" (standard input) is not supported"),
         });

@@ -8,8 +8,9 @@ use std::path::{Path, PathBuf};
 
 use super::codec::{AsciiReader, ElementSink, HexReader, ReadError};
 use super::{DataFile, Encoding, Endian, NrrdHeader};
-use crate::volume::mapped::{self, check_regular_file, is_native_order, open_for_mapping};
-use crate::volume::{Limits, ReadReason, Storage, VolumeData, VolumeError};
+use crate::error::check_size;
+use crate::file::{self, is_native_order};
+use crate::{Data, Error, ReadReason, Reader, Storage};
 
 /// A printf-style integer conversion in a data file name format (`slice%03d.raw`).
 #[derive(Debug, PartialEq)]
@@ -180,20 +181,16 @@ pub(super) fn storage_kind(h: &NrrdHeader) -> Result<(), ReadReason> {
 }
 
 /// Bytes of data a checked header declares (overflow checked, no limit).
-fn data_bytes(header_path: &Path, h: &NrrdHeader) -> Result<u64, VolumeError> {
-    let unlimited = Limits {
-        max_bytes: u64::MAX,
-    };
-    let (_, bytes) = unlimited
-        .check(&h.sizes, h.scalar_type.size())
+fn data_bytes(header_path: &Path, h: &NrrdHeader) -> Result<u64, Error> {
+    let (_, bytes) = check_size(&h.sizes, h.scalar_type.size(), u64::MAX)
         .map_err(|e| with_path(header_path, e))?;
     Ok(bytes as u64)
 }
 
-/// Names the header in a [`VolumeError::TooLarge`].
-fn with_path(header_path: &Path, e: VolumeError) -> VolumeError {
+/// Names the header in a [`Error::TooLarge`].
+fn with_path(header_path: &Path, e: Error) -> Error {
     match e {
-        VolumeError::TooLarge { what, bytes, limit } => VolumeError::TooLarge {
+        Error::TooLarge { what, bytes, limit } => Error::TooLarge {
             what: format!("{}: {what}", header_path.display()),
             bytes,
             limit,
@@ -203,8 +200,14 @@ fn with_path(header_path: &Path, e: VolumeError) -> VolumeError {
 }
 
 /// The single piece of a mappable header.
-fn single_piece<'a>(header_path: &'a Path, h: &'a NrrdHeader, path: &'a Path) -> Piece<'a> {
+fn single_piece<'a>(
+    reader: &'a Reader,
+    header_path: &'a Path,
+    h: &'a NrrdHeader,
+    path: &'a Path,
+) -> Piece<'a> {
     Piece {
+        reader,
         header: h,
         header_path,
         path,
@@ -216,16 +219,17 @@ fn single_piece<'a>(header_path: &'a Path, h: &'a NrrdHeader, path: &'a Path) ->
 
 /// Where the data of a checked header will be: mapped from a file, or read.
 pub(super) fn storage(
+    reader: &Reader,
     header_path: &Path,
     h: &NrrdHeader,
     data_offset: Option<u64>,
-) -> Result<Storage, VolumeError> {
+) -> Result<Storage, Error> {
     let bytes = data_bytes(header_path, h)?;
     if let Err(reason) = storage_kind(h) {
         return Ok(Storage::Read { bytes, reason });
     }
     let (path, start) = data_file(header_path, h, data_offset, 0);
-    let (_, offset) = single_piece(header_path, h, &path).locate_raw(start)?;
+    let (_, offset) = single_piece(reader, header_path, h, &path).locate_raw(start)?;
     Ok(Storage::Mapped {
         path,
         offset,
@@ -234,26 +238,25 @@ pub(super) fn storage(
 }
 
 /// Reads all the data of a checked header, or maps it (raw encoding in native byte
-/// order, in one file: not counted against `limits`).
+/// order, in one file: not counted against the reader's byte limit).
 pub(super) fn read_data(
+    reader: &Reader,
     header_path: &Path,
     h: &NrrdHeader,
     data_offset: Option<u64>,
-    limits: &Limits,
     hash: bool,
-) -> Result<(VolumeData, Option<u128>), VolumeError> {
+) -> Result<(Data, Option<u128>), Error> {
     if storage_kind(h).is_ok() {
         let bytes = data_bytes(header_path, h)?;
         let (path, start) = data_file(header_path, h, data_offset, 0);
-        let (file, offset) = single_piece(header_path, h, &path).locate_raw(start)?;
-        let m = mapped::map(&file, &path, h.scalar_type, offset, bytes)?;
+        let (file, offset) = single_piece(reader, header_path, h, &path).locate_raw(start)?;
+        let m = file::map(&file, &path, h.scalar_type, offset, bytes)?;
         let digest = hash.then(|| xxhash_rust::xxh3::xxh3_128(m.bytes()));
-        return Ok((VolumeData::Mapped(m), digest));
+        return Ok((Data::Mapped(m), digest));
     }
     let elem = h.scalar_type.size();
-    let (count, _) = limits
-        .check(&h.sizes, elem)
-        .map_err(|e| with_path(header_path, e))?;
+    let (count, _) =
+        check_size(&h.sizes, elem, reader.max_bytes).map_err(|e| with_path(header_path, e))?;
     // check_header made sure the count divides evenly and is at most `count`.
     let files = usize::try_from(file_count(&h.data_file))
         .unwrap_or(usize::MAX)
@@ -267,6 +270,7 @@ pub(super) fn read_data(
     for index in 0..files {
         let (path, start) = data_file(header_path, h, data_offset, index);
         let piece = Piece {
+            reader,
             header: h,
             header_path,
             path: &path,
@@ -297,6 +301,7 @@ pub(super) fn data_files(
 
 /// One data file's share of the elements.
 struct Piece<'a> {
+    reader: &'a Reader,
     header: &'a NrrdHeader,
     header_path: &'a Path,
     path: &'a Path,
@@ -323,15 +328,15 @@ impl Piece<'_> {
         }
     }
 
-    fn error(&self, message: impl std::fmt::Display) -> VolumeError {
-        VolumeError::Data {
+    fn error(&self, message: impl std::fmt::Display) -> Error {
+        Error::Data {
             path: self.path.to_path_buf(),
             message: format!("{message}{}", self.context()),
         }
     }
 
-    fn io_error(&self, source: io::Error) -> VolumeError {
-        VolumeError::Io {
+    fn io_error(&self, source: io::Error) -> Error {
+        Error::Io {
             path: self.path.to_path_buf(),
             source,
         }
@@ -339,14 +344,17 @@ impl Piece<'_> {
 
     /// Opens the data file without blocking and refuses anything but a regular file;
     /// returns it with its length.
-    fn open(&self) -> Result<(File, u64), VolumeError> {
-        let file = open_for_mapping(self.path).map_err(|e| match self.header.data_file {
-            DataFile::Attached => self.io_error(e),
-            _ => self.error(format_args!("cannot open data file: {e}")),
-        })?;
+    fn open(&self) -> Result<(File, u64), Error> {
+        let file = self
+            .reader
+            .open(self.path)
+            .map_err(|e| match self.header.data_file {
+                DataFile::Attached => self.io_error(e),
+                _ => self.error(format_args!("cannot open data file: {e}")),
+            })?;
         let meta = file.metadata().map_err(|e| self.io_error(e))?;
-        check_regular_file(self.path, &meta).map_err(|e| match e {
-            VolumeError::Unsupported { path, message } => VolumeError::Unsupported {
+        file::check_regular(self.path, &meta, "volume data").map_err(|e| match e {
+            Error::Unsupported { path, message } => Error::Unsupported {
                 path,
                 message: format!("{message}{}", self.context()),
             },
@@ -357,7 +365,7 @@ impl Piece<'_> {
 
     /// `line skip` and `byte skip` that go beyond the file are errors at once, before
     /// anything is read (`available`: bytes from where the data section starts).
-    fn check_skips(&self, available: u64) -> Result<(), VolumeError> {
+    fn check_skips(&self, available: u64) -> Result<(), Error> {
         let h = self.header;
         let lines = h.line_skip as u64;
         if lines > available {
@@ -389,7 +397,7 @@ impl Piece<'_> {
         Ok(())
     }
 
-    fn read(&self, start: u64, sink: &mut ElementSink) -> Result<(), VolumeError> {
+    fn read(&self, start: u64, sink: &mut ElementSink) -> Result<(), Error> {
         let (file, file_len) = self.open()?;
         self.check_skips(file_len.saturating_sub(start))?;
         let mut r = BufReader::new(file);
@@ -433,7 +441,7 @@ impl Piece<'_> {
     /// regular file, applies `line skip` and `byte skip` as [`Piece::read`] does (same
     /// errors for data that is too short), and returns the file and where the data
     /// starts.
-    fn locate_raw(&self, start: u64) -> Result<(File, u64), VolumeError> {
+    fn locate_raw(&self, start: u64) -> Result<(File, u64), Error> {
         let (file, file_len) = self.open()?;
         self.check_skips(file_len.saturating_sub(start))?;
         let mut r = BufReader::new(file);
@@ -446,7 +454,7 @@ impl Piece<'_> {
     }
 
     /// `line skip`: whole lines of the file as stored, without buffering them.
-    fn skip_lines(&self, r: &mut impl BufRead) -> Result<(), VolumeError> {
+    fn skip_lines(&self, r: &mut impl BufRead) -> Result<(), Error> {
         for done in 0..self.header.line_skip {
             loop {
                 let buf = r.fill_buf().map_err(|e| self.io_error(e))?;
@@ -472,7 +480,7 @@ impl Piece<'_> {
     }
 
     /// `byte skip` (≥ 0) on a stream, reading and discarding.
-    fn skip_bytes(&self, r: &mut impl Read, what: &str) -> Result<(), VolumeError> {
+    fn skip_bytes(&self, r: &mut impl Read, what: &str) -> Result<(), Error> {
         let want = u64::try_from(self.header.byte_skip).unwrap_or(0);
         let got = io::copy(&mut r.take(want), &mut io::sink())
             .map_err(|e| self.error(format_args!("{what}: {e}")))?;
@@ -486,7 +494,7 @@ impl Piece<'_> {
 
     /// Raw data: apply the byte skip (-1 = last bytes) and check the length first, so
     /// a hostile header costs nothing.
-    fn position_raw(&self, r: &mut BufReader<File>, file_len: u64) -> Result<(), VolumeError> {
+    fn position_raw(&self, r: &mut BufReader<File>, file_len: u64) -> Result<(), Error> {
         let need = self.bytes();
         if self.header.byte_skip < 0 {
             if file_len < need {
@@ -515,12 +523,7 @@ impl Piece<'_> {
         r.seek_relative(skip as i64).map_err(|e| self.io_error(e))
     }
 
-    fn decode(
-        &self,
-        r: &mut impl Read,
-        sink: &mut ElementSink,
-        what: &str,
-    ) -> Result<(), VolumeError> {
+    fn decode(&self, r: &mut impl Read, sink: &mut ElementSink, what: &str) -> Result<(), Error> {
         let elem = self.header.scalar_type.size() as u64;
         sink.read(r, self.elements).map_err(|e| match e {
             ReadError::Short { bytes } if what == "ascii" => self.error(format_args!(
@@ -543,7 +546,7 @@ impl Piece<'_> {
                 self.bytes()
             )),
             ReadError::Io(e) => self.io_error(e),
-            ReadError::Memory { bytes } => VolumeError::OutOfMemory {
+            ReadError::Memory { bytes } => Error::OutOfMemory {
                 path: self.path.to_path_buf(),
                 bytes,
             },
@@ -551,7 +554,7 @@ impl Piece<'_> {
     }
 
     /// After the declared elements, one more byte means the data is longer than declared.
-    fn probe_end(&self, r: &mut impl Read, what: &str) -> Result<(), VolumeError> {
+    fn probe_end(&self, r: &mut impl Read, what: &str) -> Result<(), Error> {
         let mut one = [0u8; 1];
         let more = loop {
             match r.read(&mut one) {

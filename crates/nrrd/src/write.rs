@@ -8,19 +8,19 @@ use super::codec::{ascii_text, element_bytes, hex_text};
 use super::data::NumberFormat;
 use super::fields::{is_center, is_kind};
 use super::{Encoding, Endian, NrrdHeader};
-use crate::volume::{TypedVoxels, VolumeData, VolumeError};
+use crate::{Data, Elements, Error};
 
 /// Encodes a complete attached-header NRRD file in memory: magic, fields, `key:=value`
 /// pairs (escaped), a blank line, then the data in `header.encoding` and
 /// `header.endian`. `data_file`, `line_skip` and `byte_skip` are not written: the data
 /// follows the header directly.
-pub fn encode(header: &NrrdHeader, data: &VolumeData) -> Result<Vec<u8>, VolumeError> {
-    encode_voxels(header, data.typed())
+pub fn encode(header: &NrrdHeader, data: &Data) -> Result<Vec<u8>, Error> {
+    encode_elements(header, data.elements())
 }
 
 /// [`encode`] from a borrowed view of the values (an image's samples, say): the file's
 /// bytes are the one buffer this allocates.
-pub fn encode_voxels(header: &NrrdHeader, data: TypedVoxels<'_>) -> Result<Vec<u8>, VolumeError> {
+pub fn encode_elements(header: &NrrdHeader, data: Elements<'_>) -> Result<Vec<u8>, Error> {
     check_for_writing(header, data)?;
     let mut out = header_text(header, None).into_bytes();
     out.push(b'\n');
@@ -33,9 +33,18 @@ pub fn write_detached(
     nhdr_path: &Path,
     data_file_name: &str,
     header: &NrrdHeader,
-    data: &VolumeData,
-) -> Result<(), VolumeError> {
-    let data = data.typed();
+    data: &Data,
+) -> Result<(), Error> {
+    write_detached_elements(nhdr_path, data_file_name, header, data.elements())
+}
+
+/// [`write_detached`] from a borrowed view of the values.
+pub fn write_detached_elements(
+    nhdr_path: &Path,
+    data_file_name: &str,
+    header: &NrrdHeader,
+    data: Elements<'_>,
+) -> Result<(), Error> {
     check_for_writing(header, data)?;
     check_data_file_name(data_file_name)?;
     let text = header_text(header, Some(data_file_name));
@@ -48,19 +57,19 @@ pub fn write_detached(
     write_file(nhdr_path, text.as_bytes())
 }
 
-fn write_file(path: &Path, bytes: &[u8]) -> Result<(), VolumeError> {
-    std::fs::write(path, bytes).map_err(|source| VolumeError::Io {
+fn write_file(path: &Path, bytes: &[u8]) -> Result<(), Error> {
+    std::fs::write(path, bytes).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
     })
 }
 
-fn invalid(message: String) -> VolumeError {
-    VolumeError::Invalid(format!("cannot write NRRD: {message}"))
+fn invalid(message: String) -> Error {
+    Error::Invalid(format!("cannot write NRRD: {message}"))
 }
 
 /// A name the reader would take as one plain file name.
-fn check_data_file_name(name: &str) -> Result<(), VolumeError> {
+fn check_data_file_name(name: &str) -> Result<(), Error> {
     let first = name.split_whitespace().next().unwrap_or_default();
     let plain = name.trim() == name
         && !name.is_empty()
@@ -78,7 +87,7 @@ fn check_data_file_name(name: &str) -> Result<(), VolumeError> {
 
 // ---------------------------------------------------------------- checks
 
-fn check_len<T>(v: &Option<Vec<T>>, n: usize, what: &str, of: &str) -> Result<(), VolumeError> {
+fn check_len<T>(v: &Option<Vec<T>>, n: usize, what: &str, of: &str) -> Result<(), Error> {
     match v {
         Some(v) if v.len() != n => Err(invalid(format!(
             "{what} has {} entries, {of} is {n}",
@@ -88,18 +97,14 @@ fn check_len<T>(v: &Option<Vec<T>>, n: usize, what: &str, of: &str) -> Result<()
     }
 }
 
-fn check_line(s: &str, what: &str) -> Result<(), VolumeError> {
+fn check_line(s: &str, what: &str) -> Result<(), Error> {
     if s.contains(['\n', '\r']) {
         return Err(invalid(format!("{what} {s:?} contains a line break")));
     }
     Ok(())
 }
 
-fn check_words(
-    v: &Option<Vec<String>>,
-    what: &str,
-    valid: fn(&str) -> bool,
-) -> Result<(), VolumeError> {
+fn check_words(v: &Option<Vec<String>>, what: &str, valid: fn(&str) -> bool) -> Result<(), Error> {
     match v.iter().flatten().find(|w| !valid(w)) {
         Some(w) => Err(invalid(format!(
             "{w:?} is not one of the {what} of the NRRD format"
@@ -108,7 +113,7 @@ fn check_words(
     }
 }
 
-fn check_key_value(key: &str, value: &str) -> Result<(), VolumeError> {
+fn check_key_value(key: &str, value: &str) -> Result<(), Error> {
     let ok_key = !key.is_empty()
         && !key.contains(":=")
         && !key.contains(": ")
@@ -127,7 +132,7 @@ fn check_key_value(key: &str, value: &str) -> Result<(), VolumeError> {
     Ok(())
 }
 
-fn check_space(h: &NrrdHeader) -> Result<(), VolumeError> {
+fn check_space(h: &NrrdHeader) -> Result<(), Error> {
     if let (Some(space), Some(sd)) = (h.space, h.space_dimension) {
         if space.dimension() != sd {
             return Err(invalid(format!(
@@ -165,7 +170,7 @@ fn check_space(h: &NrrdHeader) -> Result<(), VolumeError> {
     check_len(&h.space_units, sd, "space units", "space dimension")
 }
 
-fn check_for_writing(h: &NrrdHeader, data: TypedVoxels<'_>) -> Result<(), VolumeError> {
+fn check_for_writing(h: &NrrdHeader, data: Elements<'_>) -> Result<(), Error> {
     let dim = h.dimension();
     if !(1..=16).contains(&dim) || h.sizes.contains(&0) {
         return Err(invalid(format!(
@@ -386,11 +391,7 @@ fn header_text(h: &NrrdHeader, data_file: Option<&str>) -> String {
 // ---------------------------------------------------------------- data
 
 /// `out` with the data appended in the header's encoding.
-fn encode_data(
-    h: &NrrdHeader,
-    data: TypedVoxels<'_>,
-    mut out: Vec<u8>,
-) -> Result<Vec<u8>, VolumeError> {
+fn encode_data(h: &NrrdHeader, data: Elements<'_>, mut out: Vec<u8>) -> Result<Vec<u8>, Error> {
     let le = h.endian == Endian::Little;
     let compress_err =
         |e: std::io::Error| invalid(format!("{} compression failed: {e}", h.encoding.name()));
@@ -421,7 +422,7 @@ fn encode_data(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::volume::ScalarType;
+    use crate::ScalarType;
 
     #[test]
     fn numbers_round_trip() {
@@ -445,10 +446,10 @@ mod tests {
 
     #[test]
     fn refuses_what_would_not_read_back() {
-        let d = VolumeData::U8(vec![0; 2]);
+        let d = Data::U8(vec![0; 2]);
         let h = NrrdHeader::new(ScalarType::Uint8, vec![2]);
-        assert!(encode(&h, &VolumeData::U8(vec![0; 3])).is_err());
-        assert!(encode(&h, &VolumeData::I8(vec![0; 2])).is_err());
+        assert!(encode(&h, &Data::U8(vec![0; 3])).is_err());
+        assert!(encode(&h, &Data::I8(vec![0; 2])).is_err());
         let mut bad = h.clone();
         bad.key_values.push(("type: x".into(), "y".into()));
         assert!(encode(&bad, &d).is_err());

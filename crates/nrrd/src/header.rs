@@ -4,54 +4,34 @@
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
-use super::fields::{self, field_index};
+use super::fields::{self, field_index, FieldLine, RawHeader};
 use super::{check, DataFile, NrrdHeader};
-use crate::volume::mapped::open_regular;
-use crate::volume::VolumeError;
+use crate::{file, Error, Reader};
 
 /// Longest header line accepted (a hostile file cannot make us buffer more).
 const MAX_LINE: u64 = 1 << 20;
 /// Largest header accepted, in bytes.
 const MAX_HEADER: u64 = 64 << 20;
 
-/// One `<field>: <desc>` line.
-#[derive(Debug)]
-pub(super) struct FieldLine {
-    /// 1-based line number.
-    pub line: usize,
-    /// Index into [`fields::FIELDS`].
-    pub field: usize,
-    /// The descriptor after `: `.
-    pub desc: String,
-}
-
-/// The header as text, split into its parts but not yet interpreted.
-#[derive(Debug, Default)]
-pub(super) struct RawHeader {
-    /// Format version from the magic (1..=5).
-    pub version: u8,
-    /// Field lines in file order.
-    pub fields: Vec<FieldLine>,
-    /// `#` comments.
-    pub comments: Vec<String>,
-    /// `key:=value` pairs, unescaped, with their line numbers.
-    pub key_values: Vec<(usize, String, String)>,
-    /// File names after `data file: LIST`, with their line numbers.
-    pub list_names: Vec<(usize, String)>,
-    /// Byte offset just after the blank line, when the header ended with one.
-    pub data_offset: Option<u64>,
-}
-
 /// Reads, parses and checks the header of `path`; also returns where attached data
 /// starts (`None` for detached data).
-pub(super) fn load_header(path: &Path) -> Result<(NrrdHeader, Option<u64>), VolumeError> {
-    let (file, _) = open_regular(path, "a NRRD header")?;
+pub(super) fn load_header(
+    reader: &Reader,
+    path: &Path,
+) -> Result<(NrrdHeader, Option<u64>), Error> {
+    let io_err = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = reader.open(path).map_err(io_err)?;
+    let meta = file.metadata().map_err(io_err)?;
+    file::check_regular(path, &meta, "a NRRD header")?;
     let raw = read_raw_header(path, &mut BufReader::new(file))?;
     let parsed = fields::parse_fields(path, &raw)?;
     check::check_header(path, &parsed)?;
     let offset = match parsed.header.data_file {
         DataFile::Attached => Some(raw.data_offset.ok_or_else(|| {
-            VolumeError::Header {
+            Error::Header {
                 path: path.to_path_buf(),
                 line: 0,
                 message: "the header ends at the end of the file, without the blank line that \
@@ -64,8 +44,8 @@ pub(super) fn load_header(path: &Path) -> Result<(NrrdHeader, Option<u64>), Volu
     Ok((parsed.header, offset))
 }
 
-fn header_error(path: &Path, line: usize, message: impl Into<String>) -> VolumeError {
-    VolumeError::Header {
+fn header_error(path: &Path, line: usize, message: impl Into<String>) -> Error {
+    Error::Header {
         path: path.to_path_buf(),
         line,
         message: message.into(),
@@ -79,12 +59,12 @@ fn next_line(
     line: usize,
     reader: &mut impl BufRead,
     buf: &mut Vec<u8>,
-) -> Result<u64, VolumeError> {
+) -> Result<u64, Error> {
     buf.clear();
     let n = reader
         .take(MAX_LINE + 1)
         .read_until(b'\n', buf)
-        .map_err(|source| VolumeError::Io {
+        .map_err(|source| Error::Io {
             path: path.to_path_buf(),
             source,
         })? as u64;
@@ -105,11 +85,11 @@ fn next_line(
 }
 
 /// Checks the magic line and returns the format version.
-fn parse_magic(path: &Path, bytes: &[u8]) -> Result<u8, VolumeError> {
+fn parse_magic(path: &Path, bytes: &[u8]) -> Result<u8, Error> {
     let shown = String::from_utf8_lossy(&bytes[..bytes.len().min(40)]).into_owned();
     match bytes {
         [b'N', b'R', b'R', b'D', b'0', b'0', b'0', v @ b'1'..=b'5'] => Ok(v - b'0'),
-        [b'N', b'R', b'R', b'D', ..] => Err(VolumeError::Unsupported {
+        [b'N', b'R', b'R', b'D', ..] => Err(Error::Unsupported {
             path: path.to_path_buf(),
             message: format!(
                 "line 1: magic {shown:?} is not a supported NRRD version (expected NRRD0001 to NRRD0005)"
@@ -186,10 +166,7 @@ fn is_list(desc: &str) -> bool {
 
 /// Reads the header lines up to the blank line (attached data), the end of the file,
 /// or the end of a `data file: LIST` name list.
-pub(super) fn read_raw_header(
-    path: &Path,
-    reader: &mut impl BufRead,
-) -> Result<RawHeader, VolumeError> {
+pub(super) fn read_raw_header(path: &Path, reader: &mut impl BufRead) -> Result<RawHeader, Error> {
     let mut buf = Vec::new();
     let mut consumed = next_line(path, 1, reader, &mut buf)?;
     if consumed == 0 {
@@ -263,7 +240,7 @@ fn read_list_names(
     mut line: usize,
     mut consumed: u64,
     raw: &mut RawHeader,
-) -> Result<(), VolumeError> {
+) -> Result<(), Error> {
     let mut buf = Vec::new();
     loop {
         line += 1;
@@ -289,7 +266,7 @@ fn read_list_names(
 mod tests {
     use super::*;
 
-    fn raw(text: &[u8]) -> Result<RawHeader, VolumeError> {
+    fn raw(text: &[u8]) -> Result<RawHeader, Error> {
         read_raw_header(Path::new("t.nrrd"), &mut &text[..])
     }
 

@@ -6,17 +6,16 @@
 use std::borrow::Cow;
 use std::io::{self, BufRead, Read};
 
-use crate::volume::{ScalarType, TypedVoxels, VolumeData, Voxel, Voxels};
-use crate::with_voxels;
+use crate::{Data, Element, Elements, ScalarType};
 
 /// Bytes read per step (a multiple of every element size).
 const CHUNK: usize = 1 << 16;
 /// Smallest first allocation, in elements.
 const MIN_CAPACITY: usize = 1 << 12;
 
-/// Why reading elements stopped.
+/// Why [`ElementSink::read`] stopped.
 #[derive(Debug)]
-pub(crate) enum ReadError {
+pub enum ReadError {
     /// The stream ended after `bytes` bytes, before the requested elements.
     Short {
         /// Bytes of the requested piece that did arrive.
@@ -32,22 +31,23 @@ pub(crate) enum ReadError {
 }
 
 /// A native-typed buffer filled from a byte stream, never allocating beyond `total`
-/// elements nor much beyond what has arrived.
-pub(crate) struct ElementSink {
-    data: VolumeData,
+/// elements nor much beyond what has arrived: what the reader decodes every encoding
+/// into, usable by readers of other formats as well.
+pub struct ElementSink {
+    data: Data,
     total: usize,
     little_endian: bool,
     /// XXH3-128 of the element bytes as stored, fed as they arrive (when asked for).
     hasher: Option<Box<xxhash_rust::xxh3::Xxh3>>,
 }
 
-fn empty(ty: ScalarType) -> VolumeData {
-    VolumeData::from_bytes(ty, &[], true)
+fn empty(ty: ScalarType) -> Data {
+    Data::from_bytes(ty, &[], true)
 }
 
 /// Appends the elements in `bytes`, growing geometrically but never past `total`;
 /// an allocation that fails is an error, not an abort.
-fn push<T: Voxel>(v: &mut Vec<T>, bytes: &[u8], le: bool, total: usize) -> Result<(), ReadError> {
+fn push<T: Element>(v: &mut Vec<T>, bytes: &[u8], le: bool, total: usize) -> Result<(), ReadError> {
     let size = std::mem::size_of::<T>();
     let n = bytes.len() / size;
     if v.capacity() - v.len() < n {
@@ -93,17 +93,17 @@ impl ElementSink {
         }
         let (le, total) = (self.little_endian, self.total);
         match &mut self.data {
-            VolumeData::I8(v) => push(v, bytes, le, total),
-            VolumeData::U8(v) => push(v, bytes, le, total),
-            VolumeData::I16(v) => push(v, bytes, le, total),
-            VolumeData::U16(v) => push(v, bytes, le, total),
-            VolumeData::I32(v) => push(v, bytes, le, total),
-            VolumeData::U32(v) => push(v, bytes, le, total),
-            VolumeData::I64(v) => push(v, bytes, le, total),
-            VolumeData::U64(v) => push(v, bytes, le, total),
-            VolumeData::F32(v) => push(v, bytes, le, total),
-            VolumeData::F64(v) => push(v, bytes, le, total),
-            VolumeData::Mapped(_) => unreachable!("an ElementSink only holds owned data"),
+            Data::I8(v) => push(v, bytes, le, total),
+            Data::U8(v) => push(v, bytes, le, total),
+            Data::I16(v) => push(v, bytes, le, total),
+            Data::U16(v) => push(v, bytes, le, total),
+            Data::I32(v) => push(v, bytes, le, total),
+            Data::U32(v) => push(v, bytes, le, total),
+            Data::I64(v) => push(v, bytes, le, total),
+            Data::U64(v) => push(v, bytes, le, total),
+            Data::F32(v) => push(v, bytes, le, total),
+            Data::F64(v) => push(v, bytes, le, total),
+            Data::Mapped(_) => unreachable!("an ElementSink only holds owned data"),
         }
     }
 
@@ -138,7 +138,7 @@ impl ElementSink {
     }
 
     /// The elements read so far.
-    pub fn finish(self) -> VolumeData {
+    pub fn finish(self) -> Data {
         self.data
     }
 }
@@ -150,7 +150,7 @@ pub(crate) fn read_elements(
     ty: ScalarType,
     count: usize,
     little_endian: bool,
-) -> Result<VolumeData, ReadError> {
+) -> Result<Data, ReadError> {
     let mut sink = ElementSink::new(ty, count, little_endian);
     sink.read(r, count)?;
     Ok(sink.finish())
@@ -397,39 +397,97 @@ impl_native_bytes!("{}": i8, u8, i16, u16, i32, u32, i64, u64);
 // Debug: exponent notation for very large and small magnitudes (Display never uses it).
 impl_native_bytes!("{:?}": f32, f64);
 
+/// Calls `$body` with `$v` bound to the elements of `$e` ([`Elements`]) decoded as
+/// an iterator of their Rust type.
+macro_rules! with_values {
+    ($e:expr, $v:ident => $body:expr) => {{
+        let e: Elements<'_> = $e;
+        match e.scalar_type() {
+            ScalarType::Int8 => {
+                let $v = values::<i8>(e);
+                $body
+            }
+            ScalarType::Uint8 => {
+                let $v = values::<u8>(e);
+                $body
+            }
+            ScalarType::Int16 => {
+                let $v = values::<i16>(e);
+                $body
+            }
+            ScalarType::Uint16 => {
+                let $v = values::<u16>(e);
+                $body
+            }
+            ScalarType::Int32 => {
+                let $v = values::<i32>(e);
+                $body
+            }
+            ScalarType::Uint32 => {
+                let $v = values::<u32>(e);
+                $body
+            }
+            ScalarType::Int64 => {
+                let $v = values::<i64>(e);
+                $body
+            }
+            ScalarType::Uint64 => {
+                let $v = values::<u64>(e);
+                $body
+            }
+            ScalarType::Float32 => {
+                let $v = values::<f32>(e);
+                $body
+            }
+            ScalarType::Float64 => {
+                let $v = values::<f64>(e);
+                $body
+            }
+        }
+    }};
+}
+
+/// The elements decoded one by one from their native bytes (at any alignment).
+fn values<T: Element>(e: Elements<'_>) -> impl ExactSizeIterator<Item = T> + '_ {
+    e.bytes()
+        .chunks_exact(T::TYPE.size())
+        .map(|c| T::from_bytes(c, cfg!(target_endian = "little")))
+}
+
 /// The data as stored bytes in the given byte order: the data's own bytes when
 /// that is the native order (no copy), else a converted copy.
-pub(super) fn element_bytes(data: TypedVoxels<'_>, little_endian: bool) -> Cow<'_, [u8]> {
-    fn conv<T: Voxel + NativeBytes>(v: Voxels<'_, T>, le: bool) -> Cow<'_, [u8]> {
-        if le == cfg!(target_endian = "little") {
-            return Cow::Borrowed(v.as_bytes());
-        }
-        let mut out = Vec::with_capacity(v.as_bytes().len());
-        for x in v.iter() {
+pub(super) fn element_bytes(data: Elements<'_>, little_endian: bool) -> Cow<'_, [u8]> {
+    fn conv<T: Element + NativeBytes>(v: impl Iterator<Item = T>, n: usize, le: bool) -> Vec<u8> {
+        let mut out = Vec::with_capacity(n);
+        for x in v {
             let (b, n) = x.bytes8(le);
             out.extend_from_slice(&b[..n]);
         }
-        Cow::Owned(out)
+        out
     }
-    with_voxels!(data, v => conv(v, little_endian))
+    if little_endian == cfg!(target_endian = "little") || data.scalar_type().size() == 1 {
+        return Cow::Borrowed(data.bytes());
+    }
+    let n = data.bytes().len();
+    Cow::Owned(with_values!(data, v => conv(v, n, little_endian)))
 }
 
 /// The data as ASCII text, `per_line` values per line (Rust's shortest round-trip
 /// formatting, `1.0e300`-style for extreme floats; NaN and infinities as `NaN`, `inf`,
 /// `-inf`).
-pub(super) fn ascii_text(data: TypedVoxels<'_>, per_line: usize) -> Vec<u8> {
-    fn conv<T: Voxel + NativeBytes>(v: Voxels<'_, T>, per_line: usize) -> Vec<u8> {
+pub(super) fn ascii_text(data: Elements<'_>, per_line: usize) -> Vec<u8> {
+    fn conv<T: NativeBytes>(v: impl Iterator<Item = T>, per_line: usize) -> Vec<u8> {
         let per_line = per_line.max(1);
         let mut out = String::new();
-        for start in (0..v.len()).step_by(per_line) {
-            let row = v.slice(start..(start + per_line).min(v.len()));
-            let line: Vec<String> = row.iter().map(|x| x.ascii()).collect();
+        let mut v = v.peekable();
+        while v.peek().is_some() {
+            let line: Vec<String> = v.by_ref().take(per_line).map(|x| x.ascii()).collect();
             out.push_str(&line.join(" "));
             out.push('\n');
         }
         out.into_bytes()
     }
-    with_voxels!(data, v => conv(v, per_line))
+    with_values!(data, v => conv(v, per_line))
 }
 
 /// Bytes as hex text, 32 bytes (64 digits) per line.
@@ -470,13 +528,13 @@ mod tests {
         let d = read_elements(&mut Trickle(&bytes), ScalarType::Int32, 2, false).unwrap();
         assert_eq!(
             d,
-            VolumeData::I32(vec![
+            Data::I32(vec![
                 0x01020304,
                 i32::from_be_bytes([0xff, 0xfe, 0xfd, 0xfc])
             ])
         );
         let d = read_elements(&mut &bytes[..], ScalarType::Uint16, 4, true).unwrap();
-        assert_eq!(d, VolumeData::U16(vec![0x0201, 0x0403, 0xfeff, 0xfcfd]));
+        assert_eq!(d, Data::U16(vec![0x0201, 0x0403, 0xfeff, 0xfcfd]));
     }
 
     #[test]
@@ -518,7 +576,7 @@ mod tests {
             true,
         )
         .unwrap();
-        assert_eq!(d, VolumeData::I16(vec![1, -2, 3, 100]));
+        assert_eq!(d, Data::I16(vec![1, -2, 3, 100]));
         let text = b"18446744073709551615 0";
         let d = read_elements(
             &mut AsciiReader::new(&text[..], ScalarType::Uint64),
@@ -527,7 +585,7 @@ mod tests {
             true,
         )
         .unwrap();
-        assert_eq!(d, VolumeData::U64(vec![u64::MAX, 0]));
+        assert_eq!(d, Data::U64(vec![u64::MAX, 0]));
         let text = b"nan -inf 0.1 1e-45";
         let d = read_elements(
             &mut AsciiReader::new(&text[..], ScalarType::Float32),
@@ -536,7 +594,7 @@ mod tests {
             true,
         )
         .unwrap();
-        let VolumeData::F32(v) = d else { panic!() };
+        let Data::F32(v) = d else { panic!() };
         assert!(v[0].is_nan() && v[1] == f32::NEG_INFINITY && v[2] == 0.1f32 && v[3] > 0.0);
         for (bad, ty) in [
             (&b"1 x2"[..], ScalarType::Uint8),
@@ -553,13 +611,16 @@ mod tests {
 
     #[test]
     fn writers() {
-        let d = VolumeData::U16(vec![0x0102, 0xa0b0]);
-        assert_eq!(*element_bytes(d.typed(), true), [2, 1, 0xb0, 0xa0]);
-        assert_eq!(*element_bytes(d.typed(), false), [1, 2, 0xa0, 0xb0]);
+        let d = Data::U16(vec![0x0102, 0xa0b0]);
+        assert_eq!(*element_bytes(d.elements(), true), [2, 1, 0xb0, 0xa0]);
+        assert_eq!(*element_bytes(d.elements(), false), [1, 2, 0xa0, 0xb0]);
         assert_eq!(hex_text(&[0, 0xff, 0x10]), b"00ff10\n");
-        let d = VolumeData::F32(vec![0.1, f32::NAN, -f32::INFINITY, 3.0]);
-        assert_eq!(ascii_text(d.typed(), 2), b"0.1 NaN\n-inf 3.0\n");
-        let d = VolumeData::F64(vec![f64::MAX, 5e-324]);
-        assert_eq!(ascii_text(d.typed(), 2), b"1.7976931348623157e308 5e-324\n");
+        let d = Data::F32(vec![0.1, f32::NAN, -f32::INFINITY, 3.0]);
+        assert_eq!(ascii_text(d.elements(), 2), b"0.1 NaN\n-inf 3.0\n");
+        let d = Data::F64(vec![f64::MAX, 5e-324]);
+        assert_eq!(
+            ascii_text(d.elements(), 2),
+            b"1.7976931348623157e308 5e-324\n"
+        );
     }
 }
