@@ -244,10 +244,10 @@ impl March {
         assert!(self.len() < UNKNOWN as usize && ts.len() == out.len());
         #[cfg(target_arch = "x86_64")]
         if ts.len().is_multiple_of(8) && std::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the machine has AVX-512F; the lengths are checked above
+            // SAFETY: `is_x86_feature_detected!` found AVX-512F just above
             unsafe { guesses_avx512(self, ts, out) };
-            // SAFETY: `guesses_avx512` wrote every entry; `MaybeUninit<u32>` has
-            // the layout of `u32`
+            // SAFETY: `guesses_avx512` wrote every entry (`out` is as long as `ts`,
+            // a multiple of 8); `MaybeUninit<u32>` has the layout of `u32`
             return unsafe { &*(out as *const [MaybeUninit<u32>] as *const [u32]) };
         }
         for i in out.iter_mut() {
@@ -263,13 +263,12 @@ pub const UNKNOWN: u32 = u32::MAX;
 
 /// The guesses of [`March::first_at_or_after_known`], checked as
 /// [`Lattice::first_at_or_after`] checks them, eight to a register: a right one
-/// into `out`, [`UNKNOWN`] for a wrong one.
-///
-/// # Safety
-/// The machine has AVX-512F; `ts` and `out` have the same length, a multiple of 8.
+/// into `out`, [`UNKNOWN`] for a wrong one: every entry of `out` where `ts` and
+/// `out` have the same length, a multiple of 8 (else the whole groups of eight of
+/// the shorter).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn guesses_avx512(m: &March, ts: &[f64], out: &mut [MaybeUninit<u32>]) {
+fn guesses_avx512(m: &March, ts: &[f64], out: &mut [MaybeUninit<u32>]) {
     use std::arch::x86_64::*;
     debug_assert!(ts.len() == out.len() && ts.len().is_multiple_of(8));
     let n = _mm512_set1_pd(m.len() as f64);
@@ -290,8 +289,9 @@ unsafe fn guesses_avx512(m: &March, ts: &[f64], out: &mut [MaybeUninit<u32>]) {
         let t = _mm512_min_pd(_mm512_max_pd(t, t0), t1);
         _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_GT_OQ>(x, last_before_end), t, t1)
     };
-    for k in (0..ts.len()).step_by(8) {
-        let t = _mm512_loadu_pd(ts.as_ptr().add(k));
+    for (ts, out) in ts.chunks_exact(8).zip(out.chunks_exact_mut(8)) {
+        // SAFETY: `ts` is eight f64
+        let t = unsafe { _mm512_loadu_pd(ts.as_ptr()) };
         // the guess's ceiling in [0, n] (NaN gives 0), as `first_at_or_after`
         let g = _mm512_sub_pd(_mm512_mul_pd(_mm512_sub_pd(t, t0), inv_dt), shift);
         let c = _mm512_roundscale_pd::<{ _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC }>(g);
@@ -302,7 +302,8 @@ unsafe fn guesses_avx512(m: &March, ts: &[f64], out: &mut [MaybeUninit<u32>]) {
             _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(c, n) | _mm512_cmp_pd_mask::<_CMP_GE_OQ>(at(c), t);
         let ok = above & below;
         let i = _mm512_cvttpd_epu32(_mm512_mask_blend_pd(ok, wrong, c));
-        _mm256_storeu_si256(out.as_mut_ptr().add(k) as *mut __m256i, i);
+        // SAFETY: `out` is eight u32 (`MaybeUninit<u32>` has the layout of `u32`)
+        unsafe { _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, i) };
     }
 }
 
@@ -343,7 +344,7 @@ impl Lattice for March {
 fn fill_from_indices(from: usize, ts: &mut [f64], at: impl Fn(f64) -> f64) {
     #[cfg(target_arch = "x86_64")]
     if from + ts.len() <= i32::MAX as usize && std::is_x86_feature_detected!("avx512f") {
-        // SAFETY: the machine has AVX-512F
+        // SAFETY: `is_x86_feature_detected!` found AVX-512F just above
         unsafe { fill_avx512(from, ts, at) };
         return;
     }
@@ -358,16 +359,13 @@ fn fill_from_indices(from: usize, ts: &mut [f64], at: impl Fn(f64) -> f64) {
     }
 }
 
-/// [`fill_from_indices`] below 2^31 compiled for AVX-512: the same operations
-/// (no fused multiply-add), eight positions to a register. On the Intel host of
-/// 2026-12-05 the peer MIP frames took 0.93-0.97x the time, X-ray 0.98x
-/// (`bench/peers/README.md`, twentieth round).
-///
-/// # Safety
-/// The machine has AVX-512F; `from + ts.len() <= i32::MAX`.
+/// [`fill_from_indices`] below 2^31 (`from + ts.len() <= i32::MAX`, else the
+/// indices wrap) compiled for AVX-512: the same operations (no fused
+/// multiply-add), eight positions to a register, which made the peer MIP and
+/// X-ray frames faster (`bench/peers/README.md`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn fill_avx512(from: usize, ts: &mut [f64], at: impl Fn(f64) -> f64) {
+fn fill_avx512(from: usize, ts: &mut [f64], at: impl Fn(f64) -> f64) {
     for (k, t) in ts.iter_mut().enumerate() {
         *t = at((from + k) as i32 as f64);
     }

@@ -166,10 +166,10 @@ pub struct Grid<'a, T: Voxel> {
     norm: Normalize,
     /// Voxels per axis.
     pub n: [usize; 3],
-    /// Stride of y.
-    pub sx: usize,
-    /// Stride of z.
-    pub sxy: usize,
+    /// Stride of y (private: the unchecked reads of the cells trust it).
+    sx: usize,
+    /// Stride of z (private, as `sx`).
+    sxy: usize,
     /// Per axis: the last voxel index as `f64` (positions are clamped to it).
     last: [f64; 3],
     /// Per axis: the last cell's first voxel (`n - 2`, or 0 on a one-voxel axis).
@@ -437,11 +437,13 @@ impl<'a, T: Voxel> Grid<'a, T> {
         #[cfg(target_arch = "x86_64")]
         if const { avx2::Gather::reads(T::TYPE) } {
             if self.wide {
-                // SAFETY: `wide` is set only with `gather` on a machine with AVX-512.
+                // SAFETY: `wide` is set only with `gather`, where `avx512::available`
+                // found AVX-512F and AVX2 (`is_x86_feature_detected!`).
                 return unsafe { self.trilinear_avx512::<RAW>(o, d, ts, out) };
             }
             if self.gather.is_some() {
-                // SAFETY: `gather` is set only when the machine has AVX2.
+                // SAFETY: `gather` is set only where `Gather::for_grid` found AVX2
+                // (`is_x86_feature_detected!`).
                 return unsafe { self.trilinear_avx2::<RAW>(o, d, ts, out) };
             }
         }
@@ -534,7 +536,12 @@ impl<'a, T: Voxel> Grid<'a, T> {
 
     /// [`Grid::trilinear_scalar`] with the cell search and the interpolation in
     /// SSE2 registers: the same operations in the same order, so the same bits, in
-    /// about half the instructions.
+    /// fewer instructions. An `unsafe fn` rather than a `#[target_feature]` one
+    /// (SSE2 is part of x86-64), which could not be `#[inline(always)]`.
+    ///
+    /// # Safety
+    /// `self.sse2`: every index of the grid fits an i32, so that the conversions
+    /// to i32 give the cell of each clamped position.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn trilinear_sse2<const RAW: bool>(
@@ -588,6 +595,10 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// time through the table of pairs where the grid has one ([`Grid::with_pairs`]),
     /// or as they are ([`Grid::cell_bytes`]) on a grid of raw bytes; the others
     /// through [`Grid::cell_values`].
+    ///
+    /// # Safety
+    /// `base` is the flat index of a cell's first voxel, as [`Grid::locate`] gives
+    /// it (so `base + dx + dy + dz` is a voxel, [`Grid::cell_values`]).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn cell_vectors_sse2(

@@ -135,6 +135,8 @@ impl Lookup for Table1D {
         Some(self)
     }
 
+    /// # Safety
+    /// As [`Lookup::rgba`]: `x` is in `[0, len - 1]`.
     #[inline(always)]
     unsafe fn rgba<F: Field>(
         &self,
@@ -150,6 +152,9 @@ impl Lookup for Table1D {
 }
 
 impl Lookup for Table2D {
+    /// # Safety
+    /// None beyond the trait's: a 2D table's lookup clamps its own positions (the
+    /// method is `unsafe` for the 1D table's sake).
     #[inline(always)]
     unsafe fn rgba<F: Field>(
         &self,
@@ -845,7 +850,7 @@ impl FrontToBack {
     fn add_all(&mut self, rgbas: &[[f32; 4]]) -> Option<usize> {
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the machine has AVX2
+            // SAFETY: `is_x86_feature_detected!` found AVX2 just above
             return unsafe { self.add_all_avx2(rgbas) };
         }
         self.add_all_scalar(rgbas)
@@ -867,15 +872,11 @@ impl FrontToBack {
     /// sample's three channels converted and weighted at once (four lanes, the
     /// fourth not kept), each lane through the operations of
     /// [`FrontToBack::add`] (a multiplication, then an addition: the same bits).
-    /// About 16 instructions a sample against 25, in a loop whose chain of
-    /// dependent operations (the transmittance's multiplication) leaves room for
-    /// them.
-    ///
-    /// # Safety
-    /// The machine has AVX2.
+    /// Fewer instructions a sample, in a loop whose chain of dependent operations
+    /// (the transmittance's multiplication) leaves room for them.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn add_all_avx2(&mut self, rgbas: &[[f32; 4]]) -> Option<usize> {
+    fn add_all_avx2(&mut self, rgbas: &[[f32; 4]]) -> Option<usize> {
         use std::arch::x86_64::*;
         let c = self.color;
         let mut color = _mm256_setr_pd(c.x, c.y, c.z, 0.0);
@@ -885,7 +886,8 @@ impl FrontToBack {
             let a = f64::from(rgba[3]);
             let w = transmit * a;
             transmit *= 1.0 - a;
-            let rgba = _mm256_cvtps_pd(_mm_loadu_ps(rgba.as_ptr()));
+            // SAFETY: `rgba` is four f32
+            let rgba = _mm256_cvtps_pd(unsafe { _mm_loadu_ps(rgba.as_ptr()) });
             color = _mm256_add_pd(color, _mm256_mul_pd(rgba, _mm256_set1_pd(w)));
             alpha += w;
             if alpha >= self.early_stop {
@@ -894,7 +896,8 @@ impl FrontToBack {
             }
         }
         let mut lanes = [0.0; 4];
-        _mm256_storeu_pd(lanes.as_mut_ptr(), color);
+        // SAFETY: `lanes` is four f64
+        unsafe { _mm256_storeu_pd(lanes.as_mut_ptr(), color) };
         self.color = DVec3::new(lanes[0], lanes[1], lanes[2]);
         (self.alpha, self.transmit) = (alpha, transmit);
         stop
