@@ -417,6 +417,94 @@ impl Lattice for Midpoints<'_> {
 mod tests {
     use super::*;
 
+    /// Whether this CPU lacks AVX-512F, saying so.
+    #[cfg(target_arch = "x86_64")]
+    fn no_avx512(what: &str) -> bool {
+        if std::is_x86_feature_detected!("avx512f") {
+            return false;
+        }
+        eprintln!("skipped: this CPU has no AVX-512F, so {what} never runs");
+        true
+    }
+
+    /// Marches with whole and partial steps, jittered or not, short and long.
+    fn marches() -> [March; 5] {
+        [
+            March::new(0.3, 17.9, 0.7),
+            March::jittered(-4.0, 9.0, 0.25, 0.61),
+            March::new(5.0, 5.0, 1.0),
+            March::new(-1e6, 1e6, 0.5),
+            March::jittered(1e-3, 3.0, 1.0 / 3.0, 0.999),
+        ]
+    }
+
+    /// [`fill_avx512`] called directly gives the positions of the scalar loop
+    /// ([`March::t`]) to the bit, for runs of every length 0-40 from several
+    /// starts (whole groups of eight and tails).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn fill_avx512_is_the_scalar_fill() {
+        if no_avx512("fill_avx512") {
+            return;
+        }
+        let mut checked = 0;
+        for m in marches() {
+            let whole = m.full_steps + 1;
+            for from in [0, 1, 7, 13] {
+                for len in 0..=40usize {
+                    if from + len > whole {
+                        continue;
+                    }
+                    let mut ts = vec![f64::NAN; len];
+                    // SAFETY: the CPU has AVX-512F (checked above)
+                    unsafe { fill_avx512(from, &mut ts, |x| m.t_at_index(x)) };
+                    for (k, &t) in ts.iter().enumerate() {
+                        assert_eq!(t.to_bits(), m.t(from + k).to_bits(), "{m:?} {from} {k}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 1000, "{checked} positions checked");
+    }
+
+    /// [`guesses_avx512`] called directly writes every entry, and each one it
+    /// finds is [`Lattice::first_at_or_after`]'s (one at a time), for the positions
+    /// themselves, the values a rounding off them, others between and beyond the
+    /// ends, and non-finite ones; it finds most of them.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn guesses_avx512_are_first_at_or_after() {
+        if no_avx512("guesses_avx512") {
+            return;
+        }
+        for m in marches() {
+            let mut ts = vec![f64::NAN, f64::NEG_INFINITY, f64::INFINITY, -0.0];
+            for i in 0..m.len().min(300) {
+                let t = m.t(i);
+                ts.extend([t, t.next_up(), t.next_down(), t + 0.3 * m.dt()]);
+            }
+            for k in 0..100 {
+                ts.push(-5.0 + k as f64 * 0.23);
+            }
+            ts.truncate(ts.len() / 8 * 8);
+            let mut out = vec![MaybeUninit::new(UNKNOWN - 1); ts.len()];
+            // SAFETY: the CPU has AVX-512F (checked above)
+            unsafe { guesses_avx512(&m, &ts, &mut out) };
+            let mut found = 0;
+            for (&t, i) in ts.iter().zip(&out) {
+                // SAFETY: initialised above, and written again
+                let i = unsafe { i.assume_init() };
+                assert_ne!(i, UNKNOWN - 1, "an entry left unwritten");
+                if i != UNKNOWN {
+                    assert_eq!(i as usize, m.first_at_or_after(t), "t = {t}, {m:?}");
+                    found += 1;
+                }
+            }
+            assert!(2 * found >= ts.len(), "{found} of {}", ts.len());
+        }
+    }
+
     #[test]
     fn march_covers_the_segment() {
         let m = March::new(1.0, 3.5, 1.0);
