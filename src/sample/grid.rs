@@ -55,10 +55,8 @@ macro_rules! broadcast_lanes {
 
 /// Runs `$run!(K)` with the loop code `K` ([`avx2::Loop`]) of storage `$kind`
 /// (gathered: raw bytes read by gathers), each loop its own code with the storage
-/// chosen once per call, not once per group of lanes: on the eight-lane path
-/// 0.97-0.98x the CPU time of the peer benchmark's MIP frames and 0.99x of its
-/// uint8 composite (`bench/peers/README.md`, twenty-fifth round); the four-lane
-/// path runs as many instructions as before, within 0.3 %. Only the loops of voxel
+/// chosen once per call, not once per group of lanes, so that no group of lanes
+/// pays a branch on the storage (`bench/peers/README.md`). Only the loops of voxel
 /// type `$t`'s storage are compiled, and with `$raw`, only those of raw bytes.
 #[cfg(target_arch = "x86_64")]
 macro_rules! each_storage {
@@ -811,7 +809,7 @@ impl<'a> Gradients<'a> {
         // the gradient volume's eight reads in a loop of their own, not behind the
         // estimator's branch at each corner: how well that shared loop compiled
         // depended on how the crate happened to be split into code-generation
-        // units (an experiment's build spent 1.4x the time here on the frames of
+        // units (a build could spend much longer here on the frames of
         // `scenes/transfer_2d.toml`)
         if let Some(g) = self.volume {
             return self.interpolate(grid.n, p, |i, j, k| g[i + grid.sx * j + grid.sxy * k]);

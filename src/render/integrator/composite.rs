@@ -499,8 +499,8 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     /// through the operations of [`Consumer::take`] (its start is the same
     /// [`Composite::position_unless_clear`]), so the bits are the same. Split, the
     /// lookups overlap one another, and the accumulation runs in a loop of its own
-    /// ([`FrontToBack::add_all`]) that keeps its state in registers: 0.89-0.92x the
-    /// CPU time of the peer composites (`bench/peers/README.md`, eighteenth round).
+    /// ([`FrontToBack::add_all`]) that keeps its state in registers
+    /// (`bench/peers/README.md`).
     /// Where this machine has AVX2, the first half of the lookups (clear or not,
     /// and the split of the table position) runs eight samples at a time
     /// ([`Midpoint::take_found`]). Other batches are taken one sample at a time.
@@ -651,21 +651,10 @@ impl<F: Field, T: Lookup> Midpoint<'_, F, T> {
 
 /// Samples kept by [`Midpoint::take_batch`]'s lookups before they are composited:
 /// a ray that stops early has looked up at most this many samples beyond its last.
-/// A whole batch (64) at once made a frame of an opaque transfer function 1.05x
-/// the time of one sample at a time; 16 made it 0.97x, and the peer composites'
-/// time the same as 64's (eighteenth round). Since the sampler's loop per storage
-/// kind, on the model-207 Intel host, 32 took 0.96-0.97x the CPU time of 16 on the
-/// perspective peer composites (uint8 and float32) and 0.97-0.99x on the
-/// orthographic ones, 64 0.98x; the engine CT through an opaque, unshaded bone
-/// function 1.006x, a soft one 0.996x (`bench/peers/README.md`, twenty-fifth
-/// round).
-///
-/// With the accumulation in registers ([`FrontToBack::add_all`]), 16 again: on
-/// the model-0xa7 Intel host, one thread, interleaved against 32, the perspective
-/// uint8 composite 0.951x and 0.959x the CPU time (8 0.980x, 24 0.982x, 64
-/// 0.989x), orthographic uint8 0.986x, orthographic float32 0.969x, perspective
-/// float32 at two threads 0.992x, the engine CT's bone function (unshaded, 512 x
-/// 512) 0.97-1.00x (`bench/peers/README.md`, twenty-eighth round).
+/// A whole batch at once wastes the lookups past an early stop of an opaque
+/// transfer function; with the accumulation in registers
+/// ([`FrontToBack::add_all`]), this many was the fastest of those measured on the
+/// peer composites (`bench/peers/README.md`).
 const KEPT: usize = 16;
 
 /// Compositing of pre-integrated segments between consecutive samples.
