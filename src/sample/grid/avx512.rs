@@ -128,16 +128,7 @@ impl<T: Voxel> Grid<'_, T> {
             // are monotone), so the axes' least indices at the ends bound every
             // lane's
             let from_two = self.row_gathers && between && c.kind == Gather::Bits8Raw && {
-                let least = |[o, d, last, top]: [f64; 4]| {
-                    let cell = |t: f64| {
-                        let x = o + d * t;
-                        let x = if x > 0.0 { x } else { 0.0 };
-                        let x = if x < last { x } else { last };
-                        (if x < top { x } else { top }) as usize
-                    };
-                    cell(lo).min(cell(hi))
-                };
-                let [i, j, k] = c.axes.map(least);
+                let [i, j, k] = c.axes.map(|axis| least_cell(axis, lo, hi));
                 i + self.sx * j + self.sxy * k >= 2
             };
             let (ts, out) = (&ts[..rest], &mut out[..rest]);
@@ -442,6 +433,22 @@ impl<T: Voxel> Grid<'_, T> {
         // SAFETY: `a` and `b` are eight f32 each
         unsafe { (_mm256_loadu_ps(a.as_ptr()), _mm256_loadu_ps(b.as_ptr())) }
     }
+}
+
+/// The lesser of the cells on one axis (`[o, d, last, top]`,
+/// `LaneConstants::axes`) of the positions at `lo` and `hi`, clamped as `locate`
+/// clamps them. Out of line, as the closure it replaces was before the vector
+/// paths' helpers became safe functions: inlined, it changed the register
+/// allocation of the loops it sits beside.
+#[inline(never)]
+fn least_cell([o, d, last, top]: [f64; 4], lo: f64, hi: f64) -> usize {
+    let cell = |t: f64| {
+        let x = o + d * t;
+        let x = if x > 0.0 { x } else { 0.0 };
+        let x = if x < last { x } else { last };
+        (if x < top { x } else { top }) as usize
+    };
+    cell(lo).min(cell(hi))
 }
 
 /// The position `o + d t` on one axis, clamped to the grid (NaN to 0), as the
