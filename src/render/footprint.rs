@@ -33,9 +33,8 @@ use super::skip::{MacroGrid, MACROCELL};
 use crate::scene::Projection;
 
 /// Pixels per side of the tiles whose rays share a window: smaller than the
-/// render's tiles (`frame::TILE`), for tighter windows (8 took 0.99x the
-/// instructions of 16 on the peer composites at 256 x 256, 4 about 0.99x again;
-/// bench/peers/README.md, tenth round).
+/// render's tiles (`frame::TILE`), for tighter windows, and so fewer samples
+/// per ray, where smaller tiles gained little more (bench/peers/README.md).
 pub const WINDOW_TILE: usize = 8;
 
 /// Boxes projected per view at most: beyond this many macrocells, neighbouring

@@ -244,10 +244,10 @@ impl March {
         assert!(self.len() < UNKNOWN as usize && ts.len() == out.len());
         #[cfg(target_arch = "x86_64")]
         if ts.len().is_multiple_of(8) && std::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the machine has AVX-512F; the lengths are checked above
+            // SAFETY: `is_x86_feature_detected!` found AVX-512F just above
             unsafe { guesses_avx512(self, ts, out) };
-            // SAFETY: `guesses_avx512` wrote every entry; `MaybeUninit<u32>` has
-            // the layout of `u32`
+            // SAFETY: `guesses_avx512` wrote every entry (`out` is as long as `ts`,
+            // a multiple of 8); `MaybeUninit<u32>` has the layout of `u32`
             return unsafe { &*(out as *const [MaybeUninit<u32>] as *const [u32]) };
         }
         for i in out.iter_mut() {
@@ -263,13 +263,12 @@ pub const UNKNOWN: u32 = u32::MAX;
 
 /// The guesses of [`March::first_at_or_after_known`], checked as
 /// [`Lattice::first_at_or_after`] checks them, eight to a register: a right one
-/// into `out`, [`UNKNOWN`] for a wrong one.
-///
-/// # Safety
-/// The machine has AVX-512F; `ts` and `out` have the same length, a multiple of 8.
+/// into `out`, [`UNKNOWN`] for a wrong one: every entry of `out` where `ts` and
+/// `out` have the same length, a multiple of 8 (else the whole groups of eight of
+/// the shorter).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn guesses_avx512(m: &March, ts: &[f64], out: &mut [MaybeUninit<u32>]) {
+fn guesses_avx512(m: &March, ts: &[f64], out: &mut [MaybeUninit<u32>]) {
     use std::arch::x86_64::*;
     debug_assert!(ts.len() == out.len() && ts.len().is_multiple_of(8));
     let n = _mm512_set1_pd(m.len() as f64);
@@ -290,8 +289,9 @@ unsafe fn guesses_avx512(m: &March, ts: &[f64], out: &mut [MaybeUninit<u32>]) {
         let t = _mm512_min_pd(_mm512_max_pd(t, t0), t1);
         _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_GT_OQ>(x, last_before_end), t, t1)
     };
-    for k in (0..ts.len()).step_by(8) {
-        let t = _mm512_loadu_pd(ts.as_ptr().add(k));
+    for (ts, out) in ts.chunks_exact(8).zip(out.chunks_exact_mut(8)) {
+        // SAFETY: `ts` is eight f64
+        let t = unsafe { _mm512_loadu_pd(ts.as_ptr()) };
         // the guess's ceiling in [0, n] (NaN gives 0), as `first_at_or_after`
         let g = _mm512_sub_pd(_mm512_mul_pd(_mm512_sub_pd(t, t0), inv_dt), shift);
         let c = _mm512_roundscale_pd::<{ _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC }>(g);
@@ -302,7 +302,8 @@ unsafe fn guesses_avx512(m: &March, ts: &[f64], out: &mut [MaybeUninit<u32>]) {
             _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(c, n) | _mm512_cmp_pd_mask::<_CMP_GE_OQ>(at(c), t);
         let ok = above & below;
         let i = _mm512_cvttpd_epu32(_mm512_mask_blend_pd(ok, wrong, c));
-        _mm256_storeu_si256(out.as_mut_ptr().add(k) as *mut __m256i, i);
+        // SAFETY: `out` is eight u32 (`MaybeUninit<u32>` has the layout of `u32`)
+        unsafe { _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, i) };
     }
 }
 
@@ -343,7 +344,7 @@ impl Lattice for March {
 fn fill_from_indices(from: usize, ts: &mut [f64], at: impl Fn(f64) -> f64) {
     #[cfg(target_arch = "x86_64")]
     if from + ts.len() <= i32::MAX as usize && std::is_x86_feature_detected!("avx512f") {
-        // SAFETY: the machine has AVX-512F
+        // SAFETY: `is_x86_feature_detected!` found AVX-512F just above
         unsafe { fill_avx512(from, ts, at) };
         return;
     }
@@ -358,16 +359,13 @@ fn fill_from_indices(from: usize, ts: &mut [f64], at: impl Fn(f64) -> f64) {
     }
 }
 
-/// [`fill_from_indices`] below 2^31 compiled for AVX-512: the same operations
-/// (no fused multiply-add), eight positions to a register. On the Intel host of
-/// 2026-12-05 the peer MIP frames took 0.93-0.97x the time, X-ray 0.98x
-/// (`bench/peers/README.md`, twentieth round).
-///
-/// # Safety
-/// The machine has AVX-512F; `from + ts.len() <= i32::MAX`.
+/// [`fill_from_indices`] below 2^31 (`from + ts.len() <= i32::MAX`, else the
+/// indices wrap) compiled for AVX-512: the same operations (no fused
+/// multiply-add), eight positions to a register, which made the peer MIP and
+/// X-ray frames faster (`bench/peers/README.md`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn fill_avx512(from: usize, ts: &mut [f64], at: impl Fn(f64) -> f64) {
+fn fill_avx512(from: usize, ts: &mut [f64], at: impl Fn(f64) -> f64) {
     for (k, t) in ts.iter_mut().enumerate() {
         *t = at((from + k) as i32 as f64);
     }
@@ -418,6 +416,94 @@ impl Lattice for Midpoints<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Whether this CPU lacks AVX-512F, saying so.
+    #[cfg(target_arch = "x86_64")]
+    fn no_avx512(what: &str) -> bool {
+        if std::is_x86_feature_detected!("avx512f") {
+            return false;
+        }
+        eprintln!("skipped: this CPU has no AVX-512F, so {what} never runs");
+        true
+    }
+
+    /// Marches with whole and partial steps, jittered or not, short and long.
+    fn marches() -> [March; 5] {
+        [
+            March::new(0.3, 17.9, 0.7),
+            March::jittered(-4.0, 9.0, 0.25, 0.61),
+            March::new(5.0, 5.0, 1.0),
+            March::new(-1e6, 1e6, 0.5),
+            March::jittered(1e-3, 3.0, 1.0 / 3.0, 0.999),
+        ]
+    }
+
+    /// [`fill_avx512`] called directly gives the positions of the scalar loop
+    /// ([`March::t`]) to the bit, for runs of every length 0-40 from several
+    /// starts (whole groups of eight and tails).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn fill_avx512_is_the_scalar_fill() {
+        if no_avx512("fill_avx512") {
+            return;
+        }
+        let mut checked = 0;
+        for m in marches() {
+            let whole = m.full_steps + 1;
+            for from in [0, 1, 7, 13] {
+                for len in 0..=40usize {
+                    if from + len > whole {
+                        continue;
+                    }
+                    let mut ts = vec![f64::NAN; len];
+                    // SAFETY: the CPU has AVX-512F (checked above)
+                    unsafe { fill_avx512(from, &mut ts, |x| m.t_at_index(x)) };
+                    for (k, &t) in ts.iter().enumerate() {
+                        assert_eq!(t.to_bits(), m.t(from + k).to_bits(), "{m:?} {from} {k}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 1000, "{checked} positions checked");
+    }
+
+    /// [`guesses_avx512`] called directly writes every entry, and each one it
+    /// finds is [`Lattice::first_at_or_after`]'s (one at a time), for the positions
+    /// themselves, the values a rounding off them, others between and beyond the
+    /// ends, and non-finite ones; it finds most of them.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn guesses_avx512_are_first_at_or_after() {
+        if no_avx512("guesses_avx512") {
+            return;
+        }
+        for m in marches() {
+            let mut ts = vec![f64::NAN, f64::NEG_INFINITY, f64::INFINITY, -0.0];
+            for i in 0..m.len().min(300) {
+                let t = m.t(i);
+                ts.extend([t, t.next_up(), t.next_down(), t + 0.3 * m.dt()]);
+            }
+            for k in 0..100 {
+                ts.push(-5.0 + k as f64 * 0.23);
+            }
+            ts.truncate(ts.len() / 8 * 8);
+            let mut out = vec![MaybeUninit::new(UNKNOWN - 1); ts.len()];
+            // SAFETY: the CPU has AVX-512F (checked above)
+            unsafe { guesses_avx512(&m, &ts, &mut out) };
+            let mut found = 0;
+            for (&t, i) in ts.iter().zip(&out) {
+                // SAFETY: initialised above, and written again
+                let i = unsafe { i.assume_init() };
+                assert_ne!(i, UNKNOWN - 1, "an entry left unwritten");
+                if i != UNKNOWN {
+                    assert_eq!(i as usize, m.first_at_or_after(t), "t = {t}, {m:?}");
+                    found += 1;
+                }
+            }
+            assert!(2 * found >= ts.len(), "{found} of {}", ts.len());
+        }
+    }
 
     #[test]
     fn march_covers_the_segment() {

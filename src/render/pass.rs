@@ -232,9 +232,9 @@ impl ModeSpec {
             Interpolation::Nearest | Interpolation::Trilinear if exact_zeros => {
                 GridSource::Voxels(Support::Linear)
             }
-            // the composite passes over octants too: 22 % fewer samples and 4-6 % fewer
-            // instructions per peer-benchmark frame; the iso-surface's samples halved,
-            // but not its instructions, so the other modes skip the octants' set-up
+            // the composite passes over octants too: fewer samples and fewer
+            // instructions per frame; the iso-surface's samples fell, but not its
+            // instructions, so the other modes skip the octants' set-up
             Interpolation::Nearest | Interpolation::Trilinear
                 if matches!(self, ModeSpec::Composite { .. }) =>
             {

@@ -55,10 +55,8 @@ macro_rules! broadcast_lanes {
 
 /// Runs `$run!(K)` with the loop code `K` ([`avx2::Loop`]) of storage `$kind`
 /// (gathered: raw bytes read by gathers), each loop its own code with the storage
-/// chosen once per call, not once per group of lanes: on the eight-lane path
-/// 0.97-0.98x the CPU time of the peer benchmark's MIP frames and 0.99x of its
-/// uint8 composite (`bench/peers/README.md`, twenty-fifth round); the four-lane
-/// path runs as many instructions as before, within 0.3 %. Only the loops of voxel
+/// chosen once per call, not once per group of lanes, so that no group of lanes
+/// pays a branch on the storage (`bench/peers/README.md`). Only the loops of voxel
 /// type `$t`'s storage are compiled, and with `$raw`, only those of raw bytes.
 #[cfg(target_arch = "x86_64")]
 macro_rules! each_storage {
@@ -166,10 +164,10 @@ pub struct Grid<'a, T: Voxel> {
     norm: Normalize,
     /// Voxels per axis.
     pub n: [usize; 3],
-    /// Stride of y.
-    pub sx: usize,
-    /// Stride of z.
-    pub sxy: usize,
+    /// Stride of y (private: the unchecked reads of the cells trust it).
+    sx: usize,
+    /// Stride of z (private, as `sx`).
+    sxy: usize,
     /// Per axis: the last voxel index as `f64` (positions are clamped to it).
     last: [f64; 3],
     /// Per axis: the last cell's first voxel (`n - 2`, or 0 on a one-voxel axis).
@@ -437,11 +435,13 @@ impl<'a, T: Voxel> Grid<'a, T> {
         #[cfg(target_arch = "x86_64")]
         if const { avx2::Gather::reads(T::TYPE) } {
             if self.wide {
-                // SAFETY: `wide` is set only with `gather` on a machine with AVX-512.
+                // SAFETY: `wide` is set only with `gather`, where `avx512::available`
+                // found AVX-512F and AVX2 (`is_x86_feature_detected!`).
                 return unsafe { self.trilinear_avx512::<RAW>(o, d, ts, out) };
             }
             if self.gather.is_some() {
-                // SAFETY: `gather` is set only when the machine has AVX2.
+                // SAFETY: `gather` is set only where `Gather::for_grid` found AVX2
+                // (`is_x86_feature_detected!`).
                 return unsafe { self.trilinear_avx2::<RAW>(o, d, ts, out) };
             }
         }
@@ -534,7 +534,12 @@ impl<'a, T: Voxel> Grid<'a, T> {
 
     /// [`Grid::trilinear_scalar`] with the cell search and the interpolation in
     /// SSE2 registers: the same operations in the same order, so the same bits, in
-    /// about half the instructions.
+    /// fewer instructions. An `unsafe fn` rather than a `#[target_feature]` one
+    /// (SSE2 is part of x86-64), which could not be `#[inline(always)]`.
+    ///
+    /// # Safety
+    /// `self.sse2`: every index of the grid fits an i32, so that the conversions
+    /// to i32 give the cell of each clamped position.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn trilinear_sse2<const RAW: bool>(
@@ -588,6 +593,10 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// time through the table of pairs where the grid has one ([`Grid::with_pairs`]),
     /// or as they are ([`Grid::cell_bytes`]) on a grid of raw bytes; the others
     /// through [`Grid::cell_values`].
+    ///
+    /// # Safety
+    /// `base` is the flat index of a cell's first voxel, as [`Grid::locate`] gives
+    /// it (so `base + dx + dy + dz` is a voxel, [`Grid::cell_values`]).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn cell_vectors_sse2(
@@ -800,7 +809,7 @@ impl<'a> Gradients<'a> {
         // the gradient volume's eight reads in a loop of their own, not behind the
         // estimator's branch at each corner: how well that shared loop compiled
         // depended on how the crate happened to be split into code-generation
-        // units (an experiment's build spent 1.4x the time here on the frames of
+        // units (a build could spend much longer here on the frames of
         // `scenes/transfer_2d.toml`)
         if let Some(g) = self.volume {
             return self.interpolate(grid.n, p, |i, j, k| g[i + grid.sx * j + grid.sxy * k]);

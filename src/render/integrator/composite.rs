@@ -135,6 +135,8 @@ impl Lookup for Table1D {
         Some(self)
     }
 
+    /// # Safety
+    /// As [`Lookup::rgba`]: `x` is in `[0, len - 1]`.
     #[inline(always)]
     unsafe fn rgba<F: Field>(
         &self,
@@ -150,6 +152,9 @@ impl Lookup for Table1D {
 }
 
 impl Lookup for Table2D {
+    /// # Safety
+    /// None beyond the trait's: a 2D table's lookup clamps its own positions (the
+    /// method is `unsafe` for the 1D table's sake).
     #[inline(always)]
     unsafe fn rgba<F: Field>(
         &self,
@@ -494,8 +499,8 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     /// through the operations of [`Consumer::take`] (its start is the same
     /// [`Composite::position_unless_clear`]), so the bits are the same. Split, the
     /// lookups overlap one another, and the accumulation runs in a loop of its own
-    /// ([`FrontToBack::add_all`]) that keeps its state in registers: 0.89-0.92x the
-    /// CPU time of the peer composites (`bench/peers/README.md`, eighteenth round).
+    /// ([`FrontToBack::add_all`]) that keeps its state in registers
+    /// (`bench/peers/README.md`).
     /// Where this machine has AVX2, the first half of the lookups (clear or not,
     /// and the split of the table position) runs eight samples at a time
     /// ([`Midpoint::take_found`]). Other batches are taken one sample at a time.
@@ -646,21 +651,10 @@ impl<F: Field, T: Lookup> Midpoint<'_, F, T> {
 
 /// Samples kept by [`Midpoint::take_batch`]'s lookups before they are composited:
 /// a ray that stops early has looked up at most this many samples beyond its last.
-/// A whole batch (64) at once made a frame of an opaque transfer function 1.05x
-/// the time of one sample at a time; 16 made it 0.97x, and the peer composites'
-/// time the same as 64's (eighteenth round). Since the sampler's loop per storage
-/// kind, on the model-207 Intel host, 32 took 0.96-0.97x the CPU time of 16 on the
-/// perspective peer composites (uint8 and float32) and 0.97-0.99x on the
-/// orthographic ones, 64 0.98x; the engine CT through an opaque, unshaded bone
-/// function 1.006x, a soft one 0.996x (`bench/peers/README.md`, twenty-fifth
-/// round).
-///
-/// With the accumulation in registers ([`FrontToBack::add_all`]), 16 again: on
-/// the model-0xa7 Intel host, one thread, interleaved against 32, the perspective
-/// uint8 composite 0.951x and 0.959x the CPU time (8 0.980x, 24 0.982x, 64
-/// 0.989x), orthographic uint8 0.986x, orthographic float32 0.969x, perspective
-/// float32 at two threads 0.992x, the engine CT's bone function (unshaded, 512 x
-/// 512) 0.97-1.00x (`bench/peers/README.md`, twenty-eighth round).
+/// A whole batch at once wastes the lookups past an early stop of an opaque
+/// transfer function; with the accumulation in registers
+/// ([`FrontToBack::add_all`]), this many was the fastest of those measured on the
+/// peer composites (`bench/peers/README.md`).
 const KEPT: usize = 16;
 
 /// Compositing of pre-integrated segments between consecutive samples.
@@ -845,7 +839,7 @@ impl FrontToBack {
     fn add_all(&mut self, rgbas: &[[f32; 4]]) -> Option<usize> {
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the machine has AVX2
+            // SAFETY: `is_x86_feature_detected!` found AVX2 just above
             return unsafe { self.add_all_avx2(rgbas) };
         }
         self.add_all_scalar(rgbas)
@@ -867,15 +861,11 @@ impl FrontToBack {
     /// sample's three channels converted and weighted at once (four lanes, the
     /// fourth not kept), each lane through the operations of
     /// [`FrontToBack::add`] (a multiplication, then an addition: the same bits).
-    /// About 16 instructions a sample against 25, in a loop whose chain of
-    /// dependent operations (the transmittance's multiplication) leaves room for
-    /// them.
-    ///
-    /// # Safety
-    /// The machine has AVX2.
+    /// Fewer instructions a sample, in a loop whose chain of dependent operations
+    /// (the transmittance's multiplication) leaves room for them.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn add_all_avx2(&mut self, rgbas: &[[f32; 4]]) -> Option<usize> {
+    fn add_all_avx2(&mut self, rgbas: &[[f32; 4]]) -> Option<usize> {
         use std::arch::x86_64::*;
         let c = self.color;
         let mut color = _mm256_setr_pd(c.x, c.y, c.z, 0.0);
@@ -885,7 +875,8 @@ impl FrontToBack {
             let a = f64::from(rgba[3]);
             let w = transmit * a;
             transmit *= 1.0 - a;
-            let rgba = _mm256_cvtps_pd(_mm_loadu_ps(rgba.as_ptr()));
+            // SAFETY: `rgba` is four f32
+            let rgba = _mm256_cvtps_pd(unsafe { _mm_loadu_ps(rgba.as_ptr()) });
             color = _mm256_add_pd(color, _mm256_mul_pd(rgba, _mm256_set1_pd(w)));
             alpha += w;
             if alpha >= self.early_stop {
@@ -894,7 +885,8 @@ impl FrontToBack {
             }
         }
         let mut lanes = [0.0; 4];
-        _mm256_storeu_pd(lanes.as_mut_ptr(), color);
+        // SAFETY: `lanes` is four f64
+        unsafe { _mm256_storeu_pd(lanes.as_mut_ptr(), color) };
         self.color = DVec3::new(lanes[0], lanes[1], lanes[2]);
         (self.alpha, self.transmit) = (alpha, transmit);
         stop

@@ -104,7 +104,7 @@ pub trait Integrand: Sync {
     /// Whether the integrand reads [`PixelRay::t_depth_ref`] (depth output, depth
     /// cues): true by default; the integrands that never do say false, and their
     /// rays skip the bounding-sphere intersection that finds it (a square root per
-    /// ray; 0.99x the CPU time of a perspective composite frame).
+    /// ray).
     fn reads_depth_reference(&self) -> bool {
         true
     }
@@ -387,9 +387,9 @@ struct Batch {
 
 /// Samples per [`Batch`]: enough to amortise a call into the vector path (its
 /// constants and the tail of fewer than eight samples), few enough that a ray
-/// stopping early wastes little. Measured (`bench/peers/README.md`, "batches of
-/// 64"): 64 took 0.79-0.81x the time of 16 for X-ray frames and 0.85-0.96x for
-/// composite ones, and made no difference to MIP and iso-surface frames.
+/// stopping early wastes little: faster than smaller batches for X-ray and
+/// composite frames, no different for MIP and iso-surface ones
+/// (`bench/peers/README.md`, "batches of 64").
 pub(super) const BATCH: usize = 64;
 
 impl Default for Batch {
@@ -410,12 +410,9 @@ impl Default for Batch {
 /// widest path with the others (on the eight-lane path, rather than the four-lane
 /// and one-sample ones), and the caller discards the extra samples. Repeating the
 /// last position keeps every lane's position between the first and the last,
-/// where the sampler may leave out its clamps. Three in four of an oblique view's
-/// MIP flushes end in such a tail (along an axis none do): on the eight-lane path
-/// 0.95-0.98x the CPU time of an oblique uint8 MIP frame; the peer benchmark's
-/// composite and X-ray frames 0.97-1.00x; its MIP along an axis, which pads
-/// nothing, 1.004-1.006x the instructions for the test (`bench/peers/README.md`,
-/// twenty-third round).
+/// where the sampler may leave out its clamps. Most of an oblique view's MIP
+/// flushes end in such a tail (along an axis none do), and the test costs a view
+/// along an axis little (`bench/peers/README.md`).
 #[inline(always)]
 fn padded(ts: &mut [f64; BATCH], n: usize, lanes: usize) -> usize {
     // a mask, not `%`: `lanes` is known at run time only, and a division per

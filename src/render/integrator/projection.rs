@@ -101,14 +101,11 @@ trait Ranked: Consumer {
 
     /// Whether [`brightest_first`] finds every span's end at once
     /// ([`March::first_at_or_after_known`]) rather than each end when its span is
-    /// sampled: for consumers that sample many of a ray's spans. A MIP samples about
-    /// one in four of the peer benchmark's (orthographic: 6.25 of 23.8), and with
-    /// the ends found at once its frames took 0.95x-0.97x the CPU time (a turntable
-    /// of the uint8 peer volume 0.93x-0.96x, with a depth cue 0.96x-0.97x); a MinIP
-    /// there often samples one span (a cell of zeros, whose minimum no other cell
-    /// beats), and its turntable took 1.04x-1.07x (`bench/peers/interleaved.py
-    /// ortho_mip ... --degrees 360 --mode minip`; `bench/peers/README.md`,
-    /// twenty-eighth round).
+    /// sampled: for consumers that sample many of a ray's spans, as a MIP does, for
+    /// which finding the ends at once is faster; a MinIP often samples one span (a
+    /// cell of zeros, whose minimum no other cell beats), for which it is slower
+    /// (`bench/peers/interleaved.py ortho_mip ... --degrees 360 --mode minip`;
+    /// `bench/peers/README.md`).
     const ENDS_TOGETHER: bool = false;
 
     /// [`Consumer::take_batch`] of the samples `map.apply(raw)` of `raws` (raw
@@ -564,14 +561,10 @@ fn brightest_first<F: Field, C: Ranked>(
 
 /// Samples that [`brightest_first`] collects from the cells it cannot pass over
 /// before it hands them to the sampler in one call, updating the running extremum
-/// that decides which cells come next. A cell of the peer benchmark's MIP holds 16
-/// samples, and a call costs about as much as two or three of them: one call per
-/// cell took 1.09-1.12x the time of one per 32 samples, which took 0.7 % more
-/// samples (twenty-first round). Since the sampler's loop per storage kind
-/// (twenty-fifth round), 48 takes 0.96-0.97x the CPU time of 32 on the orthographic
-/// MIP (uint8 and float32) and 0.98-0.99x on the perspective and oblique ones, for
-/// 1.5 % (orthographic) to 2.4 % (oblique) more samples (the oblique MinIP: 1.00x,
-/// 5 % more); 64, 0.97-1.00x for 3.6 % more (`bench/peers/README.md`).
+/// that decides which cells come next. A call costs about as much as a few
+/// samples, so collecting across cells pays for the few more samples taken before
+/// the extremum is updated; this many was the fastest of those measured on the
+/// peer MIPs (`bench/peers/README.md`).
 const FLUSH_AT: usize = 48;
 
 /// Samples of several runs of a march, handed to a ranked consumer (which never

@@ -53,7 +53,7 @@ impl Unclear {
     /// tables whose last index is `last` (at least 1) and whose clamped values up
     /// to `clear_up_to` are clear (`Composite::clear_unit`), in place of those it
     /// held. In place: returned by value, the list was copied (`memcpy`) for every
-    /// batch, 2 % of a composite frame's time.
+    /// batch.
     ///
     /// # Panics
     /// Where [`Unclear::available`] is false, or `values` is longer than a batch.
@@ -63,8 +63,8 @@ impl Unclear {
         assert!((1..1 << 24).contains(&last), "a table's last index {last}");
         assert!(Unclear::available(), "the eight-lane lookups need AVX2");
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: AVX2 is available (asserted above); values fits a batch, and each
-        // array has room for a batch and eight more
+        // SAFETY: `Unclear::available` found AVX2 (`is_x86_feature_detected!`,
+        // asserted above)
         unsafe {
             avx2::find(values, clear_up_to, last, self)
         };
@@ -96,7 +96,7 @@ impl Unclear {
 mod avx2 {
     use std::arch::x86_64::*;
 
-    use super::Unclear;
+    use super::{Unclear, BATCH};
 
     /// For each mask of eight lanes, the indices of its set lanes in order, then
     /// zeros: the permutation that moves the kept lanes to the front.
@@ -120,13 +120,14 @@ mod avx2 {
         table
     }
 
-    /// [`Unclear::find`]'s work.
+    /// [`Unclear::find`]'s work, for `1 <= last < 2^24`.
     ///
-    /// # Safety
-    /// AVX2 is available; `values.len() <= BATCH`; `1 <= last < 2^24`.
+    /// # Panics
+    /// Where `values` is longer than a batch (the stores' room).
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn find(values: &[f32], clear_up_to: f32, last: u32, out: &mut Unclear) {
+    pub(super) fn find(values: &[f32], clear_up_to: f32, last: u32, out: &mut Unclear) {
         let n = values.len();
+        assert!(n <= BATCH, "{n} values in a batch");
         let zero = _mm256_setzero_ps();
         let one = _mm256_set1_ps(1.0);
         let up_to = _mm256_set1_ps(clear_up_to);
@@ -164,7 +165,8 @@ mod avx2 {
                 let pack = unsafe {
                     _mm256_loadu_si256(PACK.get_unchecked(mask as usize).as_ptr().cast())
                 };
-                // SAFETY: len <= k <= BATCH - 1, and each array has BATCH + 8 lanes
+                // SAFETY: len <= k < n <= BATCH (asserted above), and each array has
+                // BATCH + 8 lanes
                 unsafe {
                     _mm256_storeu_si256(
                         out.index.as_mut_ptr().add(len).cast(),

@@ -79,8 +79,7 @@ pub(super) fn skippable(range: [f32; 2]) -> bool {
 /// LANES`, each in the order of the samples, and the sums added in a fixed order at
 /// the end: a batch adds its samples to the sums in vector lanes, with [`LANES`]
 /// chains of additions instead of one, so the loop no longer waits on each
-/// addition (0.82x-0.84x the CPU time of the peer benchmark's orthographic float32
-/// X-ray, `bench/peers/README.md`, twenty-fourth round). Which sum a sample joins
+/// addition (`bench/peers/README.md`). Which sum a sample joins
 /// depends on its index alone, so the integral has the same bits whatever the
 /// batches (one sample at a time, or runs cut by skipped cells, whose zeros would
 /// leave any sum as it is).

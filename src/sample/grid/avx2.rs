@@ -5,6 +5,13 @@
 //! lane does the operations of
 //! [`Grid::trilinear_sse2`] in the same order (no fused multiply-add), so a sample has
 //! the same bits whichever path takes it, on any machine.
+//!
+//! The helpers that work on registers alone are safe `#[target_feature]`
+//! functions; those that read voxels or tables at indices held in vector lanes
+//! are `unsafe fn`s whose contract is that the indices are a cell's rows (each
+//! `# Safety` section says which), and each read is an `unsafe` block of its own.
+
+#![deny(unsafe_op_in_unsafe_fn)]
 
 use std::arch::x86_64::*;
 
@@ -148,12 +155,14 @@ impl<T: Voxel> Grid<'_, T> {
     /// The trilinear samples at `o + d t` (index space) for each `t` of `ts`, into
     /// `out` (as long as `ts`): the bits of [`Grid::trilinear`] at each position
     /// (with `RAW`, on a grid of raw bytes, the raw values of
-    /// [`Grid::trilinear_along`]).
+    /// [`Grid::trilinear_along`]). Safe to call where AVX2 is enabled; a grid whose
+    /// `gather` is set (only where the machine has AVX2, [`Gather::for_grid`]) may
+    /// call it with `unsafe` after that check.
     ///
-    /// # Safety
-    /// The machine has AVX2 and `self.gather` is `Some` ([`Gather::for_grid`]).
+    /// # Panics
+    /// Where `self.gather` is `None`, or `out` is shorter than `ts`.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn trilinear_avx2<const RAW: bool>(
+    pub(super) fn trilinear_avx2<const RAW: bool>(
         &self,
         o: [f64; 3],
         d: [f64; 3],
@@ -166,7 +175,9 @@ impl<T: Voxel> Grid<'_, T> {
         let (ts4, out4) = (&ts[..4 * groups], &mut out[..4 * groups]);
         macro_rules! run {
             ($k:expr) => {
-                self.groups_avx2::<RAW, { $k }>(&c, ts4, out4)
+                // SAFETY: `each_storage!` runs the loop of `c.kind`, the grid's
+                // storage; `ts4` and `out4` are whole groups of four, as long
+                unsafe { self.groups_avx2::<RAW, { $k }>(&c, ts4, out4) }
             };
         }
         each_storage!(T, RAW, c.kind, false, run);
@@ -178,6 +189,11 @@ impl<T: Voxel> Grid<'_, T> {
 
     /// [`Grid::trilinear_avx2`] of whole groups of four (`ts.len()` a multiple of
     /// 4), with the loop of storage `K` ([`Loop`]).
+    ///
+    /// # Safety
+    /// `K` is the loop of this grid's storage (`Loop::of(self.gather, false)`: it
+    /// reads the voxels as that storage's type, and the table of pairs only where
+    /// the grid has one), and `ts` and `out` have the same length, a multiple of 4.
     #[target_feature(enable = "avx2")]
     #[inline]
     unsafe fn groups_avx2<const RAW: bool, const K: u8>(
@@ -189,12 +205,16 @@ impl<T: Voxel> Grid<'_, T> {
         debug_assert!(ts.len().is_multiple_of(4) && ts.len() == out.len());
         let (axes, [sx, sxy], rows) = broadcast_lanes!(c, _mm256_set1_epi64x);
         for g in 0..ts.len() / 4 {
-            let t = _mm256_loadu_pd(ts.as_ptr().add(4 * g));
+            // SAFETY: 4 g + 3 < ts.len()
+            let t = unsafe { _mm256_loadu_pd(ts.as_ptr().add(4 * g)) };
             let (ix, fx) = locate(&axes[0], t);
             let (iy, fy) = locate(&axes[1], t);
             let (iz, fz) = locate(&axes[2], t);
             // flat index of each lane's cell: i + sx j + sxy k (each below 2^31, the
             // products below 2^62)
+            // SAFETY (each row read below): `locate` clamps each axis to the
+            // grid's cells, so `base + rows[r]` is a cell's row start and it and
+            // the voxel after it are voxels; `K` is the grid's storage (the caller's)
             let base = _mm256_add_epi64(
                 _mm256_add_epi64(
                     _mm256_cvtepi32_epi64(ix),
@@ -204,32 +224,40 @@ impl<T: Voxel> Grid<'_, T> {
             );
             let sample = match K {
                 Loop::F32 => {
-                    let c = each_row!(self.row_words::<ROW_GENERAL>, _mm256_add_epi64, base, rows);
+                    let c = unsafe {
+                        each_row!(self.row_words::<ROW_GENERAL>, _mm256_add_epi64, base, rows)
+                    };
                     interpolate(c, fx, fy, fz)
                 }
                 Loop::F32_UNIT => {
-                    let c = each_row!(self.row_words::<ROW_UNIT>, _mm256_add_epi64, base, rows);
+                    let c = unsafe {
+                        each_row!(self.row_words::<ROW_UNIT>, _mm256_add_epi64, base, rows)
+                    };
                     interpolate(c, fx, fy, fz)
                 }
                 Loop::F32_BARE => {
-                    let c = each_row!(self.row_words::<ROW_BARE>, _mm256_add_epi64, base, rows);
+                    let c = unsafe {
+                        each_row!(self.row_words::<ROW_BARE>, _mm256_add_epi64, base, rows)
+                    };
                     interpolate(c, fx, fy, fz)
                 }
                 Loop::BITS16 => {
-                    let c = each_row!(self.row_bits::<2>, _mm256_add_epi64, base, rows);
+                    let c = unsafe { each_row!(self.row_bits::<2>, _mm256_add_epi64, base, rows) };
                     interpolate(c, fx, fy, fz)
                 }
                 Loop::BITS8 => {
-                    let c = each_row!(self.row_bits::<1>, _mm256_add_epi64, base, rows);
+                    let c = unsafe { each_row!(self.row_bits::<1>, _mm256_add_epi64, base, rows) };
                     interpolate(c, fx, fy, fz)
                 }
                 Loop::PAIRS => {
-                    let c = each_row!(self.row_words::<ROW_PAIRS>, _mm256_add_epi64, base, rows);
+                    let c = unsafe {
+                        each_row!(self.row_words::<ROW_PAIRS>, _mm256_add_epi64, base, rows)
+                    };
                     interpolate(c, fx, fy, fz)
                 }
                 _ => {
                     // raw bytes (the four-lane path reads them with scalar loads)
-                    let c = each_row!(self.row_bytes, _mm256_add_epi64, base, rows);
+                    let c = unsafe { each_row!(self.row_bytes, _mm256_add_epi64, base, rows) };
                     let v = lerps(c, fx, fy, fz);
                     if RAW {
                         v
@@ -238,7 +266,8 @@ impl<T: Voxel> Grid<'_, T> {
                     }
                 }
             };
-            _mm_storeu_ps(out.as_mut_ptr().add(4 * g), sample);
+            // SAFETY: 4 g + 3 < ts.len() == out.len() (the caller's)
+            unsafe { _mm_storeu_ps(out.as_mut_ptr().add(4 * g), sample) };
         }
     }
 
@@ -246,13 +275,19 @@ impl<T: Voxel> Grid<'_, T> {
     /// (voxel `at` of lanes 0..4, voxel `at + 1` of lanes 0..4): float32 voxels
     /// normalised as `KIND` says ([`ROW_GENERAL`], [`ROW_UNIT`], [`ROW_BARE`]), or
     /// 8-bit ones through the table of pairs ([`ROW_PAIRS`]).
+    ///
+    /// # Safety
+    /// Every lane's `at` and `at + 1` are voxels of the grid (`at` a cell's row
+    /// start); the voxels are float32, or with [`ROW_PAIRS`], 8-bit with a table of
+    /// pairs ([`Grid::pair_word`]).
     #[target_feature(enable = "avx2")]
     #[inline]
     unsafe fn row_words<const KIND: u8>(&self, at: __m256i) -> (__m128, __m128) {
-        // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
-        // voxel; each lane reads the two adjacent voxels as one word
-        let at: [i64; 4] = std::mem::transmute(at);
-        let w = |k: usize| {
+        // SAFETY: four i64 lanes, and every bit pattern is an i64
+        let at: [i64; 4] = unsafe { std::mem::transmute(at) };
+        // SAFETY (the caller's): each lane reads the two adjacent voxels `at` and
+        // `at + 1` as one word
+        let w = |k: usize| unsafe {
             if KIND == ROW_PAIRS {
                 self.pair_word(at[k])
             } else {
@@ -279,13 +314,17 @@ impl<T: Voxel> Grid<'_, T> {
 
     /// The 8-bit voxels at flat indices `at` and `at + 1` of each lane as floats,
     /// not normalised ([`Gather::Bits8Raw`]).
+    ///
+    /// # Safety
+    /// Every lane's `at` and `at + 1` are voxels of the grid, whose voxels are 8-bit.
     #[target_feature(enable = "avx2")]
     #[inline]
     unsafe fn row_bytes(&self, at: __m256i) -> (__m128, __m128) {
-        let at: [i64; 4] = std::mem::transmute(at);
+        // SAFETY: four i64 lanes, and every bit pattern is an i64
+        let at: [i64; 4] = unsafe { std::mem::transmute(at) };
         // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
         // voxel; each lane reads the two bytes as one 16-bit word
-        let w = |k: usize| i32::from(self.byte_pair(at[k]));
+        let w = |k: usize| i32::from(unsafe { self.byte_pair(at[k]) });
         bytes_to_floats(_mm_set_epi32(w(3), w(2), w(1), w(0)))
     }
 
@@ -296,20 +335,30 @@ impl<T: Voxel> Grid<'_, T> {
     /// Voxels `at` and `at + 1` are in the grid, whose voxels are 8-bit.
     #[inline(always)]
     pub(super) unsafe fn byte_pair(&self, at: i64) -> u16 {
-        let p = self.voxels.as_ptr().cast::<u8>().add(at as usize);
-        u16::from_le(p.cast::<u16>().read_unaligned())
+        // SAFETY (the caller's): bytes `at` and `at + 1` are in the data
+        let word = unsafe {
+            let p = self.voxels.as_ptr().cast::<u8>().add(at as usize);
+            p.cast::<u16>().read_unaligned()
+        };
+        u16::from_le(word)
     }
 
     /// The normalised 8- or 16-bit voxels (`BYTES` per voxel) at flat indices `at`
     /// and `at + 1` of each lane, through the normalisation table.
+    ///
+    /// # Safety
+    /// As [`Grid::row_bits_lanes`]: every lane's `at` and `at + 1` are voxels of the
+    /// grid, which holds `BYTES`-byte voxels, and `BYTES` is 1 or 2.
     #[target_feature(enable = "avx2")]
     #[inline]
     unsafe fn row_bits<const BYTES: usize>(&self, at: __m256i) -> (__m128, __m128) {
-        let at: [i64; 4] = std::mem::transmute(at);
+        // SAFETY: four i64 lanes, and every bit pattern is an i64
+        let at: [i64; 4] = unsafe { std::mem::transmute(at) };
         // SAFETY (the caller's): every `at` is a cell's row start, so `at + 1` is a
         // voxel
-        let [a, b] = self.row_bits_lanes::<BYTES, 4>(at);
-        (_mm_loadu_ps(a.as_ptr()), _mm_loadu_ps(b.as_ptr()))
+        let [a, b] = unsafe { self.row_bits_lanes::<BYTES, 4>(at) };
+        // SAFETY: `a` and `b` are four f32 each
+        unsafe { (_mm_loadu_ps(a.as_ptr()), _mm_loadu_ps(b.as_ptr())) }
     }
 
     /// The normalised 8-bit voxels at flat indices `at` and `at + 1`, as one 64-bit
@@ -322,20 +371,24 @@ impl<T: Voxel> Grid<'_, T> {
     #[inline(always)]
     pub(super) unsafe fn pair_word(&self, at: i64) -> i64 {
         debug_assert_eq!(self.pairs.len(), 1 << 16);
-        let word = self
-            .voxels
-            .as_ptr()
-            .cast::<u8>()
-            .add(at as usize)
-            .cast::<u16>()
-            .read_unaligned();
-        // SAFETY: a 16-bit word indexes the table's 2^16 entries; an entry is two
-        // f32 (8 bytes, aligned to 4)
-        self.pairs
-            .as_ptr()
-            .add(usize::from(u16::from_le(word)))
-            .cast::<i64>()
-            .read_unaligned()
+        // SAFETY (the caller's): bytes `at` and `at + 1` are in the data
+        let word = unsafe {
+            self.voxels
+                .as_ptr()
+                .cast::<u8>()
+                .add(at as usize)
+                .cast::<u16>()
+                .read_unaligned()
+        };
+        // SAFETY: a 16-bit word indexes the table's 2^16 entries (the caller's); an
+        // entry is two f32 (8 bytes, aligned to 4)
+        unsafe {
+            self.pairs
+                .as_ptr()
+                .add(usize::from(u16::from_le(word)))
+                .cast::<i64>()
+                .read_unaligned()
+        }
     }
 
     /// The normalised 8- or 16-bit voxels (`BYTES` per voxel) at flat indices `at`
@@ -354,18 +407,21 @@ impl<T: Voxel> Grid<'_, T> {
         let data = self.voxels.as_ptr().cast::<u8>();
         // SAFETY: the table has 2^(8 BYTES) entries (`Grid::new`: one per value of
         // the voxel type, whose size `BYTES` is) and every index is below that
-        let lut = |i: u32| *self.lut.get_unchecked(i as usize);
+        let lut = |i: u32| unsafe { *self.lut.get_unchecked(i as usize) };
         let mut a = [0.0f32; N];
         let mut b = [0.0f32; N];
         for k in 0..N {
-            // voxels `at` and `at + 1`: 2 BYTES bytes, inside the data (the caller's)
-            let p = data.add(at[k] as usize * BYTES);
-            let (lo, hi) = if BYTES == 1 {
-                let w = u32::from(p.cast::<u16>().read_unaligned());
-                (w & 0xff, w >> 8)
-            } else {
-                let w = p.cast::<u32>().read_unaligned();
-                (w & 0xffff, w >> 16)
+            // SAFETY (the caller's): voxels `at` and `at + 1`, 2 BYTES bytes, are
+            // inside the data
+            let (lo, hi) = unsafe {
+                let p = data.add(at[k] as usize * BYTES);
+                if BYTES == 1 {
+                    let w = u32::from(p.cast::<u16>().read_unaligned());
+                    (w & 0xff, w >> 8)
+                } else {
+                    let w = p.cast::<u32>().read_unaligned();
+                    (w & 0xffff, w >> 16)
+                }
             };
             a[k] = lut(lo);
             b[k] = lut(hi);
@@ -376,24 +432,17 @@ impl<T: Voxel> Grid<'_, T> {
 
 /// The two adjacent float32 voxels at flat index `at` of `data`, as one 64-bit
 /// word: what each lane of the float32 paths reads, with a scalar load rather
-/// than a gather instruction. On the Intel host of 2026-12-03 a gather is
-/// microcoded (the 2023 "Gather Data Sampling" mitigation): about 29 cycles each,
-/// whatever its width, where eight scalar loads and the inserts that make them a
-/// vector take about 7 (measured: bench/peers/README.md, "Loads, not gathers").
-/// On an AMD host of the same machine kind (2026-12-04), whose gathers are not
-/// microcoded, an eight-lane gather per row still made X-ray frames 1.16x and
-/// MIP frames 1.06x slower; on the Intel host of 2026-12-05, whose gathers are
-/// not microcoded either (an eight-lane gather about half the time of eight
-/// scalar loads put into a vector), gathering the 8-bit composite's voxel pairs
-/// was no faster (0.97x-1.08x, nineteenth round), but gathering float32 rows in
-/// the eight-lane path was (0.83-1.01x the time, twentieth round), so that path
-/// gathers them on such processors (`avx512::gathers_pay`).
+/// than a gather instruction, which is microcoded (and slow) on processors with
+/// the "Gather Data Sampling" mitigation and did not pay on the others measured
+/// (bench/peers/README.md, "Loads, not gathers"), except for the eight-lane
+/// path's float32 rows on some processors (`avx512::gathers_pay`).
 ///
 /// # Safety
 /// Voxels `at` and `at + 1` are inside `data`'s allocation.
 #[inline(always)]
 pub(super) unsafe fn f32_pair(data: *const f32, at: i64) -> i64 {
-    data.add(at as usize).cast::<i64>().read_unaligned()
+    // SAFETY (the caller's): the 8 bytes from voxel `at` are in the allocation
+    unsafe { data.add(at as usize).cast::<i64>().read_unaligned() }
 }
 
 /// One axis' broadcast constants: the ray's origin and direction, the clamp to the
@@ -409,7 +458,7 @@ impl Axis {
     /// The lanes of one axis' `[o, d, last, top]` ([`LaneConstants::axes`]).
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn new([o, d, last, top]: [f64; 4]) -> Axis {
+    fn new([o, d, last, top]: [f64; 4]) -> Axis {
         Axis {
             o: _mm256_set1_pd(o),
             d: _mm256_set1_pd(d),
@@ -424,7 +473,7 @@ impl Axis {
 /// operations.
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn locate(a: &Axis, t: __m256d) -> (__m128i, __m128) {
+fn locate(a: &Axis, t: __m256d) -> (__m128i, __m128) {
     let x = _mm256_add_pd(a.o, _mm256_mul_pd(a.d, t));
     let x = _mm256_min_pd(_mm256_max_pd(x, _mm256_setzero_pd()), a.last);
     let i = _mm256_cvttpd_epi32(_mm256_min_pd(x, a.top));
@@ -437,7 +486,7 @@ unsafe fn locate(a: &Axis, t: __m256d) -> (__m128i, __m128) {
 /// `a + (b - a) t`, clamped to [0, 1] as `f32::clamp` does.
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn interpolate(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m128) -> __m128 {
+fn interpolate(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m128) -> __m128 {
     let v = lerps(c, fx, fy, fz);
     // `max(0, v)` keeps v when both are zeros (so -0.0 stays) and when v is NaN,
     // then `min(1, .)` likewise: f32::clamp's results
@@ -448,7 +497,7 @@ unsafe fn interpolate(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m1
 /// `at` in bits 0-7, `at + 1` in bits 8-15) as two lanes of floats.
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn bytes_to_floats(w: __m128i) -> (__m128, __m128) {
+fn bytes_to_floats(w: __m128i) -> (__m128, __m128) {
     let m = _mm_set1_epi32(0xff);
     let a = _mm_and_si128(w, m);
     let b = _mm_and_si128(_mm_srli_epi32::<8>(w), m);
@@ -459,7 +508,7 @@ unsafe fn bytes_to_floats(w: __m128i) -> (__m128, __m128) {
 /// max with 0 (NaN -> 0), min with 1 (float32 voxels, or interpolated bytes).
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn normalise(norm: &Normalize, v: __m128) -> __m128 {
+fn normalise(norm: &Normalize, v: __m128) -> __m128 {
     let (l, s) = norm.lo_scale();
     let x = _mm256_mul_pd(
         _mm256_sub_pd(_mm256_cvtps_pd(v), _mm256_set1_pd(l)),
@@ -474,7 +523,7 @@ unsafe fn normalise(norm: &Normalize, v: __m128) -> __m128 {
 /// [`interpolate`] without the clamp.
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn lerps(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m128) -> __m128 {
+fn lerps(c: [(__m128, __m128); 4], fx: __m128, fy: __m128, fz: __m128) -> __m128 {
     let lerp = |a: __m128, b: __m128, t: __m128| _mm_add_ps(a, _mm_mul_ps(_mm_sub_ps(b, a), t));
     // written out: `array::map`'s closure calls are not always inlined
     let x = [
