@@ -5,9 +5,8 @@
 # DATA_DIR is where run_all.sh wrote the volume (default /work/peers-data); REPS default 2.
 # Prints "view mode before|after seconds" lines.
 # Each run writes into an empty folder, and the order of the two builds alternates from one
-# repetition to the next: with one output folder for every run and "before" always first,
-# two copies of the same binary measured 0.85-0.89x (iso-surface) and 0.96-0.98x (composite)
-# "after" (2026-12-06, twenty-fourth round of README.md).
+# repetition to the next: with one shared folder and a fixed order, two copies of the same
+# binary measured apart by more than the changes being measured.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 before=$1; after=$2; data=${3:-/work/peers-data}; reps=${4:-2}

@@ -1,6 +1,5 @@
 #!/usr/bin/env python3
-"""The composite's error against the reference over its step and its early stop (issue 7, the
-fourteenth round in README.md): volcast renders the peer benchmark's composite scene with
+"""The composite's error against the reference over its step and its early stop: volcast renders the peer benchmark's composite scene with
 `step` and `early_stop` changed, one frame, and each image is compared with the brute-force
 reference (common.errors: RMSE in grey levels of 255). Shows that the scenes' stop at 0.99 is
 most of the default's error, and that step 1 with a stop at 0.995 is closer to the reference.
