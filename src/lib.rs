@@ -17,7 +17,7 @@
 //! The layers, from the bottom: [`label`], [`transfer`], [`shade`], [`batch`] and
 //! [`volume`] (readers, no rendering); [`sample`] (reconstruction of the field);
 //! [`scene`] (the file format); [`render`] (rays, passes and integrators);
-//! [`views`] and [`output`]; [`plan`]; [`histogram`]; [`pipeline`]; [`bench`]. A
+//! [`views`] and [`output`]; [`plan`]; [`histogram`]; [`pipeline`]; [`mod@bench`]. A
 //! module imports only from the layers below it. The scene-file reference and the
 //! formulas are in the user guide (`docs/`).
 #![warn(missing_docs)]
