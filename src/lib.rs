@@ -27,6 +27,7 @@ pub mod bench;
 pub mod error;
 pub mod histogram;
 pub mod label;
+pub mod mode;
 pub mod output;
 mod parallel;
 pub mod plan;

@@ -21,13 +21,12 @@ use std::fmt::Write as _;
 use std::ops::Range;
 
 use crate::error::Error;
+use crate::mode::{Mode, NoteContext, PassContext};
 use crate::render::footprint::Footprint;
-use crate::render::pass::GridSource;
+use crate::render::pass::{GridSource, Sampling};
 use crate::render::{ClipPlane, ImageKind, IndexFrame, RenderPass};
-use crate::sample::PAIR_TABLE_BYTES;
-use crate::scene::{
-    Format, Layout, LightKindSpec, MipOutput, Mode, OrbitPath, Scene, Transfer, Units,
-};
+use crate::sample::{GradientMethod, PAIR_TABLE_BYTES};
+use crate::scene::{Format, Integration, Layout, LightKindSpec, OrbitPath, Scene, Units};
 use crate::shade::{Light, LightKind};
 use crate::views::Eye;
 use crate::volume::{human_bytes, VolumeHeader};
@@ -560,7 +559,7 @@ impl Plan {
         needs.extend(rp.describe(header.sizes));
         for (k, c) in scene.clips.iter().enumerate() {
             if c.applies_to(&p.name) {
-                let mut line = describe_clip(k, c, &p.mode);
+                let mut line = describe_clip(k, c, &*p.mode);
                 if scene
                     .keyframes
                     .as_ref()
@@ -580,11 +579,7 @@ impl Plan {
                 self.preview.0, self.preview.1
             ));
         } else if let (Some([lo, hi]), false) = (p.window, rp.kind() == ImageKind::Rgba) {
-            let value_based = matches!(
-                p.mode,
-                Mode::Mip { .. } | Mode::Minip | Mode::Average | Mode::Lmip { .. }
-            );
-            if value_based && units != Units::Normalised {
+            if p.mode.window_in_values() && units != Units::Normalised {
                 needs.push(format!(
                     "grey window [{lo}, {hi}] (data values [{}, {}])",
                     units.show(lo),
@@ -615,42 +610,15 @@ impl Plan {
     /// looks for (normalised and, under `units = "data"`, as written), and a MIP's
     /// depth cue and output.
     fn mode_notes(&self, units: Units, p: &crate::scene::RenderPass) -> Vec<String> {
-        let mut needs = Vec::new();
         let both = |t: f64| match units {
             Units::Data { .. } => format!("{t} (data value {})", units.show(t)),
             Units::Normalised => format!("{t}"),
         };
-        match p.mode {
-            Mode::Lmip { threshold } | Mode::Depth { threshold } => {
-                needs.push(format!("threshold {}", both(threshold)));
-            }
-            Mode::Surface { iso, .. } => needs.push(format!("iso value {}", both(iso))),
-            Mode::Mip { depth_cue, output } => {
-                let d = 2.0 * self.sphere.1;
-                if depth_cue > 0.0 {
-                    needs.push(format!(
-                        "depth cue {depth_cue}: each sample weighted by 1 - {depth_cue} s / {d:.4} (s = depth from the bounding sphere's entry, {d:.4} = its diameter)"
-                    ));
-                }
-                match output {
-                    MipOutput::Value => {}
-                    MipOutput::DepthOfMax => needs.push(
-                        "stores the depth s of the first sample reaching the maximum (NaN where the ray misses)".into(),
-                    ),
-                    MipOutput::DepthCoded(map) => {
-                        let [lo, hi] = p.window.unwrap_or([0.0, 1.0]);
-                        needs.push(format!(
-                            "depth-coded colour: {} from depth 0 to {d:.4}, brightness from the maximum over [{}, {}]",
-                            map.name(),
-                            both(lo),
-                            both(hi)
-                        ));
-                    }
-                }
-            }
-            _ => {}
-        }
-        needs
+        p.mode.notes(&NoteContext {
+            show: &both,
+            sphere_diameter: 2.0 * self.sphere.1,
+            window: p.window,
+        })
     }
 
     /// The memory and samples lines of [`Plan::describe`].
@@ -750,10 +718,7 @@ fn describe_keyframes(scene: &Scene) -> String {
         what.push("target".into());
     }
     for (p, _) in &kf.pass_values {
-        let key = match scene.passes[*p].mode {
-            Mode::Surface { .. } => "iso",
-            _ => "threshold",
-        };
+        let key = scene.passes[*p].mode.level().map_or("threshold", |l| l.key);
         what.push(format!("render.{}.{key}", scene.passes[*p].name));
     }
     for (c, _) in &kf.clip_offsets {
@@ -882,12 +847,28 @@ fn render_passes(
                 .filter(|c| c.applies_to(&p.name))
                 .map(|c| clip_plane(c, c.offset))
                 .collect();
+            let mode = p.mode.plan(&PassContext {
+                exact: p.integration == Integration::Exact,
+                sphere_diameter: 2.0 * sphere.1,
+                light,
+                window: p.window,
+            });
+            let sampling = Sampling {
+                name: p.name.clone(),
+                mode_name: p.mode.name(),
+                interpolation: p.interpolation,
+                gradient: p
+                    .mode
+                    .shading()
+                    .map_or(GradientMethod::Central, |s| s.gradient),
+                step_voxels: p.step_voxels,
+                jitter: p.jitter,
+            };
             RenderPass::new(
-                p,
+                sampling,
+                mode,
                 header.scalar_type,
                 voxel_length,
-                2.0 * sphere.1,
-                light,
                 !opts.no_skip,
             )
             .with_clips(clips)
@@ -907,17 +888,7 @@ fn fit_threshold(scene: &Scene) -> Option<f64> {
     }
     let mut t = f64::INFINITY;
     for p in &scene.passes {
-        let v = match &p.mode {
-            Mode::Lmip { threshold } | Mode::Depth { threshold } => Some(*threshold),
-            Mode::Surface { iso, .. } => Some(*iso),
-            Mode::Composite { transfer, .. } => match transfer {
-                Transfer::OneD(tf) => tf.first_opaque(),
-                Transfer::TwoD(tf) => tf.first_opaque(),
-            },
-            Mode::Mip { .. } | Mode::Minip | Mode::Average => p.window.map(|w| w[0]),
-            Mode::Xray { .. } => None,
-        };
-        if let Some(v) = v {
+        if let Some(v) = p.mode.fit_value(p.window) {
             t = t.min(v);
         }
     }
@@ -991,7 +962,7 @@ fn pass_variants(
 }
 
 /// One line of `check` for clipping plane `k` of a pass of `mode`.
-fn describe_clip(k: usize, c: &crate::scene::Clip, mode: &Mode) -> String {
+fn describe_clip(k: usize, c: &crate::scene::Clip, mode: &dyn Mode) -> String {
     let name = c.name.clone().unwrap_or_else(|| format!("#{}", k + 1));
     let v = |p: glam::DVec3| format!("[{}, {}, {}]", p.x, p.y, p.z);
     let offset = if c.offset != 0.0 {
@@ -999,14 +970,12 @@ fn describe_clip(k: usize, c: &crate::scene::Clip, mode: &Mode) -> String {
     } else {
         String::new()
     };
-    let cap = match (c.cap, mode) {
-        (_, Mode::Surface { .. } | Mode::Depth { .. }) if c.cap => {
-            ", the cut face capped where it is inside the object"
-        }
-        (_, Mode::Surface { .. } | Mode::Depth { .. }) => {
+    let cap = match (c.cap, mode.caps_clips()) {
+        (true, true) => ", the cut face capped where it is inside the object",
+        (false, true) => {
             ", no cap (the surface is seen from inside where the cut is inside the object)"
         }
-        _ => "",
+        (_, false) => "",
     };
     format!(
         "clipping plane {name}: through {} with normal {}{offset}, removes the side the normal points into (rays cut analytically){cap}",

@@ -107,7 +107,7 @@ pub fn speed_vs_error(report: &Report) -> Result<Vec<u8>, BenchError> {
                 ("sans-serif", 22),
             )
             .map_err(plot_err)?;
-        let modes = crate::scene::MODE_NAMES;
+        let modes = crate::mode::names();
         let mut labels: Vec<String> = report.rows.iter().map(series_label).collect();
         labels.sort();
         labels.dedup();

@@ -29,7 +29,8 @@ use glam::DVec3;
 
 use crate::parallel::{map_indices, map_runs};
 use crate::sample::{normalisation_table, GradientMethod, Gradients, Grid, Normalize};
-use crate::scene::{Mode, Scene, Transfer};
+use crate::scene::Scene;
+use crate::transfer::Transfer;
 use crate::volume::{Rescale, Volume, VolumeHeader, Voxel, Voxels};
 use crate::with_voxels;
 
@@ -78,15 +79,7 @@ impl Options {
         let gradient = scene
             .passes
             .iter()
-            .find(|p| {
-                matches!(
-                    p.mode,
-                    Mode::Composite {
-                        transfer: Transfer::TwoD(_),
-                        ..
-                    }
-                )
-            })
+            .find(|p| matches!(p.mode.transfer(), Some((_, Transfer::TwoD(_)))))
             .and_then(|p| p.mode.shading())
             .map_or(GradientMethod::Central, |s| s.gradient);
         Options {

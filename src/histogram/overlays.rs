@@ -4,7 +4,8 @@
 //! resolved scene's normalised values to data values.
 
 use crate::sample::Normalize;
-use crate::scene::{Mode, Scene, Transfer};
+use crate::scene::Scene;
+use crate::transfer::Transfer;
 use crate::transfer::WidgetShape;
 use crate::volume::Rescale;
 
@@ -111,16 +112,11 @@ impl Overlays {
                     at: data(t),
                 })
             };
-            match &pass.mode {
-                Mode::Surface { iso, .. } => mark("iso", *iso),
-                Mode::Lmip { threshold } | Mode::Depth { threshold } => {
-                    mark("threshold", *threshold)
-                }
-                Mode::Composite {
-                    transfer_name,
-                    transfer: Transfer::OneD(tf),
-                    ..
-                } => o.curves.push(Curve1D {
+            if let Some(l) = pass.mode.level() {
+                mark(l.key, l.value);
+            }
+            match pass.mode.transfer() {
+                Some((transfer_name, Transfer::OneD(tf))) => o.curves.push(Curve1D {
                     label: format!("{name}: {transfer_name}"),
                     points: (0..CURVE_POINTS)
                         .map(|i| {
@@ -130,11 +126,7 @@ impl Overlays {
                         })
                         .collect(),
                 }),
-                Mode::Composite {
-                    transfer_name,
-                    transfer: Transfer::TwoD(tf),
-                    ..
-                } => {
+                Some((transfer_name, Transfer::TwoD(tf))) => {
                     for (k, w) in tf.widgets().iter().enumerate() {
                         o.widgets.push(WidgetBox {
                             label: format!("{name}: {transfer_name} {}", k + 1),
@@ -150,7 +142,7 @@ impl Overlays {
                         at: f64::from(tf.gradient_max()),
                     });
                 }
-                _ => {}
+                None => {}
             }
         }
         o

@@ -33,7 +33,7 @@ use super::write::{Folder, Kind};
 use crate::error::Error;
 use crate::render::View;
 use crate::scene::{
-    AnaglyphColors, Layout, LightKindSpec, Mode, Projection, Scene, Separation, StereoMethod,
+    AnaglyphColors, Layout, LightKindSpec, Projection, Scene, Separation, StereoMethod,
 };
 use crate::views::ViewKey;
 use crate::volume::{FileStamp, VolumeHeader, VolumeIdentity};
@@ -576,26 +576,7 @@ pub fn resolved_scene(scene: &Scene) -> Value {
                 "interpolation": p.interpolation.name(),
                 "window": p.window,
             });
-            let extra = match &p.mode {
-                Mode::Xray { output, mu, .. } => {
-                    json!({ "output": format!("{output:?}").to_lowercase(), "mu": mu })
-                }
-                Mode::Lmip { threshold, .. } | Mode::Depth { threshold, .. } => {
-                    json!({ "threshold": threshold })
-                }
-                Mode::Surface { iso, .. } => json!({ "iso": iso }),
-                Mode::Composite {
-                    transfer_name,
-                    reference_step_voxels,
-                    early_stop,
-                    ..
-                } => json!({
-                    "transfer": transfer_name,
-                    "reference_step_voxels": reference_step_voxels,
-                    "early_stop": early_stop,
-                }),
-                _ => json!({}),
-            };
+            let extra = Value::Object(p.mode.manifest());
             if let (Value::Object(o), Value::Object(e)) = (&mut o, extra) {
                 o.extend(e);
                 if let Some(sh) = p.mode.shading() {

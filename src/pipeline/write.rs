@@ -11,7 +11,7 @@ use crate::output::overlay::{self, Colorbar, Overlay, ScaleBar};
 use crate::output::{encode, frame_path, stereo};
 use crate::plan::Plan;
 use crate::render::{Film, ImageKind, View};
-use crate::scene::{AnaglyphColors, Format, Layout, MipOutput, Mode, Projection, Scene};
+use crate::scene::{AnaglyphColors, Format, Layout, Projection, Scene};
 use crate::views::Eye;
 
 /// Lays out, encodes and writes the images of one (pass, frame); returns each file
@@ -158,15 +158,7 @@ fn frame_overlay(
         });
     // values of the volume under units = "data" for the passes whose window is on
     // the value axis
-    let value_based = matches!(
-        pass.mode,
-        Mode::Mip {
-            output: MipOutput::Value,
-            ..
-        } | Mode::Minip
-            | Mode::Average
-            | Mode::Lmip { .. }
-    );
+    let value_based = pass.mode.window_in_values();
     let shown = |x: f64| {
         if value_based {
             scene.volume.units.show(x)

@@ -11,7 +11,46 @@
 
 use glam::{DQuat, DVec3};
 
-use crate::scene::{Camera, Projection};
+/// Perspective or parallel projection.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Projection {
+    /// Pinhole camera.
+    Perspective,
+    /// Parallel rays.
+    Orthographic,
+}
+
+/// The camera description of docs/scene-reference.md.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Projection.
+    pub projection: Projection,
+    /// Vertical field of view in degrees (perspective).
+    pub fov_deg: f64,
+    /// Degrees, counter-clockwise about `up` seen from above.
+    pub azimuth_deg: f64,
+    /// Degrees towards `up`.
+    pub elevation_deg: f64,
+    /// World up, also the orbit axis (unit length).
+    pub up: DVec3,
+    /// Image magnification (1 until a `zoom = "fit"` is computed).
+    pub zoom: f64,
+    /// `zoom = "fit"`: the zoom is computed from the voxels when they are loaded.
+    pub fit: Option<ZoomFit>,
+    /// Eye-target distance in world units (perspective); `None` frames the bounding sphere.
+    pub distance: Option<f64>,
+    /// Look-at point; `None` = the centre of the volume's box.
+    pub target: Option<DVec3>,
+}
+
+/// `[camera] zoom = "fit"`: one zoom for every frame that frames the box of the
+/// voxels at or above `threshold`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ZoomFit {
+    /// Normalised value (`fit_threshold`); `None` = the scene passes' smallest
+    /// threshold, iso value, first opaque knot or window low end.
+    pub threshold: Option<f64>,
+}
 
 /// One rendered view: a camera pose and its image plane.
 #[derive(Clone, Copy, Debug, PartialEq)]

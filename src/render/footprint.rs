@@ -27,10 +27,10 @@
 
 use glam::DVec3;
 
+use super::camera::Projection;
 use super::camera::View;
 use super::ray::IndexFrame;
 use super::skip::{MacroGrid, MACROCELL};
-use crate::scene::Projection;
 
 /// Pixels per side of the tiles whose rays share a window: smaller than the
 /// render's tiles (`frame::TILE`), for tighter windows, and so fewer samples
@@ -267,8 +267,8 @@ pub(crate) mod tests {
     use glam::{DMat3, DQuat, DVec3};
 
     use super::*;
+    use crate::render::camera::Camera;
     use crate::render::skip::Support;
-    use crate::scene::Camera;
     use crate::volume::Geometry;
 
     /// A camera of `projection` at `azimuth` and `elevation` (degrees), `zoom`.

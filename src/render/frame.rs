@@ -9,6 +9,7 @@
 
 use std::sync::OnceLock;
 
+use super::camera::Projection;
 use super::clip::{clip_ray, ClipPlane};
 use super::footprint::{Footprint, Windows, WINDOW_TILE};
 use super::integrator::{jitter_fraction, Counts, Integrand, PixelRay};
@@ -17,7 +18,6 @@ use super::skip::MacroGrid;
 use super::{IndexFrame, View};
 use crate::parallel::map_chunks_mut;
 use crate::sample::Field;
-use crate::scene::Projection;
 
 /// Pixels per side of a tile (and rows per band).
 pub const TILE: usize = 16;
@@ -254,10 +254,10 @@ mod tests {
 
     use super::*;
     use crate::render::footprint::tests::camera;
+    use crate::render::integrator::XrayOutput;
     use crate::render::integrator::{Average, Composite, CompositeTable, Xray};
     use crate::render::skip::Support;
     use crate::sample::{GradientMethod, Interpolation, Normalize, Sampler};
-    use crate::scene::XrayOutput;
     use crate::transfer::{Interpolation as Ramp, Transfer1D};
     use crate::volume::Geometry;
 

@@ -21,25 +21,15 @@ use glam::DMat3;
 
 use super::clip::ClipPlane;
 use super::frame::{Kernel, RenderView};
-use super::integrator::{
-    Average, Composite, CompositeTable, CuedMip, CuedOutput, Depth, Exact, Integrand, Lmip, Minip,
-    Mip, Surface, Xray,
-};
+use super::integrator::Integrand;
 use super::skip::{MacroGrid, Support};
 use crate::sample::{
     bits_table, gradient_volume_normalised, pair_table, prefilter_normalised, raw_bytes_unclamped,
     reads_pairs, BSpline, Cubic, Field, GradientMethod, Gradients, Grid, Interpolation, Nearest,
     Normalize, Trilinear, PAIR_TABLE_BYTES,
 };
-use crate::scene::{Integration, MipOutput, Mode, Transfer};
-use crate::shade::{Light, Shader};
-use crate::transfer::{Preintegrated, COLOR_ENTRIES, INTEGRAL_ENTRIES};
+use crate::shade::Shader;
 use crate::volume::{human_bytes, ScalarType, VolumeData, Voxel};
-
-/// Entries of a 1D transfer-function table.
-pub const TABLE_1D: usize = 4096;
-/// Entries per axis of a 2D transfer-function table.
-pub const TABLE_2D: usize = 256;
 
 /// The values a macrocell grid summarises.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -98,155 +88,85 @@ pub enum ImageKind {
     Rgba,
 }
 
-/// A pass's mode with its parameters, as the integrators take them.
-#[derive(Clone, Debug)]
-enum ModeSpec {
-    Xray(Xray),
-    Mip,
-    CuedMip(CuedMip),
-    Minip,
-    Average,
-    Lmip(Lmip),
-    Depth(Depth),
-    Surface(Surface),
-    Composite {
-        transfer_name: String,
-        transfer: Transfer,
-        shader: Option<Shader>,
-        reference_step_voxels: f64,
-        early_stop: f32,
-        preintegrated: bool,
-    },
-    Exact(Exact),
+/// A mode as the renderer runs it: what its films hold, what it needs over the
+/// whole volume and how its view is built. Each mode family of [`crate::mode`]
+/// implements it for the pass it plans; nothing here knows the modes.
+pub trait RayMode: std::fmt::Debug + Send + Sync {
+    /// What its films hold.
+    fn kind(&self) -> ImageKind;
+
+    /// Whether it integrates the trilinear interpolant exactly, cell by cell.
+    fn is_exact(&self) -> bool {
+        false
+    }
+
+    /// Whether it skips only all-zero cells (X-ray, the average): its grid's ranges
+    /// must then be exact zeros, without the margin of the narrower ranges.
+    fn skips_zero_cells(&self) -> bool {
+        false
+    }
+
+    /// Whether its grid also summarises each cell's octants (compositing: fewer
+    /// samples and fewer instructions per frame; the other modes skip the octants'
+    /// set-up).
+    fn skips_octants(&self) -> bool {
+        false
+    }
+
+    /// What its macrocell grid lets it skip (for `check`).
+    fn skips(&self) -> &'static str {
+        "cells that cannot reach the threshold"
+    }
+
+    /// The shader of a mode that shades.
+    fn shader(&self) -> Option<&Shader> {
+        None
+    }
+
+    /// Whether many samples per ray take a gradient (shaded compositing, 2D
+    /// transfer functions): then a gradient volume is built, unless the gradients
+    /// are analytic.
+    fn samples_gradients(&self) -> bool {
+        false
+    }
+
+    /// Bytes of its own tables, built when it is prepared (`grid_bytes`: its
+    /// macrocell grid's, if it skips).
+    fn table_bytes(&self, _grid_bytes: Option<u64>) -> u64 {
+        0
+    }
+
+    /// Its own tables, one `check` item each.
+    fn describe_tables(&self, _needs: &mut Vec<String>) {}
+
+    /// The mode with its iso value or threshold (normalised) set to `value` (a
+    /// keyframed frame's); `None` for modes without one.
+    fn with_value(&self, _value: f32) -> Option<std::sync::Arc<dyn RayMode>> {
+        None
+    }
+
+    /// The view of `pass` over the run's precomputations: the mode builds its
+    /// tables and its integrand, and hands it to [`RenderPass::render_with`].
+    fn view<'a>(&'a self, pass: &'a RenderPass, res: &'a Resources<'a>)
+        -> Box<dyn RenderView + 'a>;
 }
 
-impl ModeSpec {
-    /// The mode of `pass` (`exact`: its integration is exact), its depth cue
-    /// scaled by the bounding sphere's `sphere_diameter`, its shading lit by
-    /// `light`.
-    fn of(
-        pass: &crate::scene::RenderPass,
-        exact: bool,
-        sphere_diameter: f64,
-        light: Light,
-    ) -> ModeSpec {
-        let shader = |s: &crate::scene::Shading| Shader {
-            model: s.model,
-            material: s.material,
-            light,
-        };
-        match &pass.mode {
-            Mode::Xray { output, mu } => {
-                let x = Xray {
-                    output: *output,
-                    mu: *mu,
-                };
-                if exact {
-                    ModeSpec::Exact(Exact::Xray {
-                        output: x.output,
-                        mu: x.mu,
-                    })
-                } else {
-                    ModeSpec::Xray(x)
-                }
-            }
-            Mode::Mip {
-                depth_cue: 0.0,
-                output: MipOutput::Value,
-            } if exact => ModeSpec::Exact(Exact::Mip),
-            Mode::Mip {
-                depth_cue: 0.0,
-                output: MipOutput::Value,
-            } => ModeSpec::Mip,
-            Mode::Mip { depth_cue, output } => {
-                let cued = CuedMip {
-                    cue: *depth_cue,
-                    diameter: sphere_diameter,
-                    output: match output {
-                        MipOutput::Value => CuedOutput::Value,
-                        MipOutput::DepthOfMax => CuedOutput::Depth,
-                        MipOutput::DepthCoded(map) => CuedOutput::Coded {
-                            map: *map,
-                            window: pass.window.unwrap_or([0.0, 1.0]).map(|x| x as f32),
-                        },
-                    },
-                };
-                if exact {
-                    ModeSpec::Exact(Exact::CuedMip(cued))
-                } else {
-                    ModeSpec::CuedMip(cued)
-                }
-            }
-            Mode::Minip if exact => ModeSpec::Exact(Exact::Minip),
-            Mode::Minip => ModeSpec::Minip,
-            Mode::Average if exact => ModeSpec::Exact(Exact::Average),
-            Mode::Average => ModeSpec::Average,
-            // the scene rejects exact integration for local MIP and compositing
-            Mode::Lmip { threshold } => ModeSpec::Lmip(Lmip {
-                threshold: *threshold as f32,
-            }),
-            Mode::Depth { threshold } if exact => ModeSpec::Exact(Exact::Depth {
-                threshold: *threshold as f32,
-            }),
-            Mode::Depth { threshold } => ModeSpec::Depth(Depth {
-                threshold: *threshold as f32,
-            }),
-            Mode::Surface { iso, shading } if exact => ModeSpec::Exact(Exact::Surface {
-                iso: *iso as f32,
-                shader: shader(shading),
-            }),
-            Mode::Surface { iso, shading } => ModeSpec::Surface(Surface {
-                iso: *iso as f32,
-                shader: shader(shading),
-            }),
-            Mode::Composite {
-                transfer_name,
-                transfer,
-                shading,
-                reference_step_voxels,
-                early_stop,
-                preintegrated,
-            } => ModeSpec::Composite {
-                transfer_name: transfer_name.clone(),
-                transfer: transfer.clone(),
-                shader: shading.as_ref().map(shader),
-                reference_step_voxels: *reference_step_voxels,
-                early_stop: *early_stop as f32,
-                preintegrated: *preintegrated && matches!(transfer, Transfer::OneD(_)),
-            },
-        }
-    }
-
-    /// The ranges the mode's skipping grid holds for samples reconstructed with
-    /// `interpolation`.
-    fn grid_source(&self, interpolation: Interpolation) -> GridSource {
-        // X-ray and the average skip all-zero cells, whose ranges must be exact
-        // zeros; the other modes take the narrower ranges without the margin
-        let exact_zeros = matches!(
-            self,
-            ModeSpec::Xray(_)
-                | ModeSpec::Average
-                | ModeSpec::Exact(Exact::Xray { .. } | Exact::Average)
-        );
-        match interpolation {
-            Interpolation::Nearest | Interpolation::Trilinear if exact_zeros => {
-                GridSource::Voxels(Support::Linear)
-            }
-            // the composite passes over octants too: fewer samples and fewer
-            // instructions per frame; the iso-surface's samples fell, but not its
-            // instructions, so the other modes skip the octants' set-up
-            Interpolation::Nearest | Interpolation::Trilinear
-                if matches!(self, ModeSpec::Composite { .. }) =>
-            {
-                GridSource::Voxels(Support::LinearOctants)
-            }
-            Interpolation::Nearest | Interpolation::Trilinear => {
-                GridSource::Voxels(Support::LinearTight)
-            }
-            Interpolation::BSpline => GridSource::Voxels(Support::Cubic),
-            Interpolation::Cubic => GridSource::Coefficients,
-        }
-    }
+/// How a pass samples, as the scene gives it (the mode aside).
+#[derive(Clone, Debug)]
+pub struct Sampling {
+    /// The pass's name (file prefix).
+    pub name: String,
+    /// The scene-file name of its mode.
+    pub mode_name: &'static str,
+    /// The reconstruction filter (exact modes walk the trilinear interpolant
+    /// whatever this says).
+    pub interpolation: Interpolation,
+    /// The gradient estimator of a mode that shades.
+    pub gradient: GradientMethod,
+    /// Sample spacing in voxels of the smallest spacing.
+    pub step_voxels: f64,
+    /// Jitter each ray's first sample.
+    pub jitter: bool,
 }
 
 /// One render pass, as planned from the scene and the volume's header: what it
@@ -256,7 +176,7 @@ impl ModeSpec {
 pub struct RenderPass {
     /// The pass's name (file prefix).
     pub name: String,
-    mode: ModeSpec,
+    mode: std::sync::Arc<dyn RayMode>,
     mode_name: &'static str,
     interpolation: Interpolation,
     gradient: GradientMethod,
@@ -271,60 +191,52 @@ pub struct RenderPass {
 }
 
 impl RenderPass {
-    /// Plans `pass` for a volume of `scalar_type` whose smallest spacing is
-    /// `voxel_length` and whose bounding sphere is `sphere_diameter` across (where
-    /// depth cues are measured), lit by `light`; `skip` = empty-space skipping.
+    /// Plans a pass of `mode` sampled as `sampling` says, for a volume of
+    /// `scalar_type` whose smallest spacing is `voxel_length`; `skip` = empty-space
+    /// skipping.
     pub fn new(
-        pass: &crate::scene::RenderPass,
+        sampling: Sampling,
+        mode: std::sync::Arc<dyn RayMode>,
         scalar_type: ScalarType,
         voxel_length: f64,
-        sphere_diameter: f64,
-        light: Light,
         skip: bool,
     ) -> RenderPass {
-        let exact = pass.integration == Integration::Exact;
-        let mode = ModeSpec::of(pass, exact, sphere_diameter, light);
-        let gradient = pass
-            .mode
-            .shading()
-            .map_or(GradientMethod::Central, |s| s.gradient);
+        let exact = mode.is_exact();
+        let gradient = sampling.gradient;
         // exact integration walks the trilinear interpolant whatever the filter
         let interpolation = if exact {
             Interpolation::Trilinear
         } else {
-            pass.interpolation
+            sampling.interpolation
         };
         // a gradient volume only where many samples per ray need a gradient: shaded
         // composites and 2D transfer functions (surfaces take one gradient per ray,
         // on the fly; analytic gradients differentiate the spline on the fly)
-        let gradient_volume = match &mode {
-            ModeSpec::Composite {
-                transfer, shader, ..
-            } => (shader.is_some() || matches!(transfer, Transfer::TwoD(_)))
-                .then_some(gradient)
-                .filter(|g| *g != GradientMethod::Analytic),
-            _ => None,
-        };
-        let grid = skip.then(|| mode.grid_source(interpolation));
+        let gradient_volume = mode
+            .samples_gradients()
+            .then_some(gradient)
+            .filter(|g| *g != GradientMethod::Analytic);
+        let grid = skip.then(|| grid_source(&*mode, interpolation));
         // trilinear samples of 8-bit voxels (exact integration reads cells)
         let bytes = !exact
             && interpolation == Interpolation::Trilinear
             && matches!(scalar_type, ScalarType::Uint8 | ScalarType::Int8);
+        let name = sampling.name;
         RenderPass {
-            name: pass.name.clone(),
-            mode_name: pass.mode.name(),
-            mode,
-            interpolation,
-            gradient,
-            dt: pass.step_voxels * voxel_length,
-            step_voxels: pass.step_voxels,
-            voxel_length,
             // the pass's seed: a hash of its name, so each pass jitters differently
-            jitter: pass.jitter.then(|| {
-                pass.name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            jitter: sampling.jitter.then(|| {
+                name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
                     (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
                 })
             }),
+            name,
+            mode_name: sampling.mode_name,
+            mode,
+            interpolation,
+            gradient,
+            dt: sampling.step_voxels * voxel_length,
+            step_voxels: sampling.step_voxels,
+            voxel_length,
             needs: Needs {
                 gradient_volume,
                 coefficients: interpolation == Interpolation::Cubic,
@@ -345,14 +257,8 @@ impl RenderPass {
     /// The pass with its iso value or threshold (normalised) set to `value`: how a
     /// keyframed frame's pass is made (modes without one are returned unchanged).
     pub fn with_value(mut self, value: f64) -> RenderPass {
-        let v = value as f32;
-        match &mut self.mode {
-            ModeSpec::Lmip(Lmip { threshold })
-            | ModeSpec::Depth(Depth { threshold })
-            | ModeSpec::Exact(Exact::Depth { threshold }) => *threshold = v,
-            ModeSpec::Surface(Surface { iso, .. })
-            | ModeSpec::Exact(Exact::Surface { iso, .. }) => *iso = v,
-            _ => {}
+        if let Some(mode) = self.mode.with_value(value as f32) {
+            self.mode = mode;
         }
         self
     }
@@ -372,6 +278,16 @@ impl RenderPass {
         self.mode_name
     }
 
+    /// Sample spacing in voxels of the smallest spacing.
+    pub fn step_voxels(&self) -> f64 {
+        self.step_voxels
+    }
+
+    /// World length of one voxel of the smallest spacing.
+    pub fn voxel_length(&self) -> f64 {
+        self.voxel_length
+    }
+
     /// Channels of its films (1 = intensity or depth, 4 = RGBA).
     pub fn channels(&self) -> usize {
         match self.kind() {
@@ -382,57 +298,21 @@ impl RenderPass {
 
     /// What its films hold.
     pub fn kind(&self) -> ImageKind {
-        match &self.mode {
-            ModeSpec::Surface(_)
-            | ModeSpec::Composite { .. }
-            | ModeSpec::Exact(Exact::Surface { .. }) => ImageKind::Rgba,
-            ModeSpec::Depth(_) | ModeSpec::Exact(Exact::Depth { .. }) => ImageKind::Depth,
-            ModeSpec::CuedMip(c) | ModeSpec::Exact(Exact::CuedMip(c)) => match c.output {
-                CuedOutput::Value => ImageKind::Intensity,
-                CuedOutput::Depth => ImageKind::Depth,
-                CuedOutput::Coded { .. } => ImageKind::Rgba,
-            },
-            _ => ImageKind::Intensity,
-        }
+        self.mode.kind()
     }
 
     /// Bytes of the pass's own tables (transfer-function and pre-integration tables,
     /// the macrocells' transparency), built when it is prepared.
     pub fn table_bytes(&self, sizes: [usize; 3]) -> u64 {
-        match &self.mode {
-            ModeSpec::Composite {
-                transfer,
-                preintegrated,
-                ..
-            } => {
-                let entries = match transfer {
-                    Transfer::OneD(_) => TABLE_1D,
-                    Transfer::TwoD(_) => TABLE_2D * TABLE_2D,
-                } as u64;
-                // the table and its copy corrected for one step
-                let tables = 2 * entries * 16;
-                let pre = if *preintegrated {
-                    Preintegrated::planned_bytes()
-                } else {
-                    0
-                };
-                // a byte per macrocell (whether it is transparent), and one more
-                // with the octants (which of them are): an eighth of the grid
-                let cells = self.needs.grid.map_or(0, |g| g.grid_bytes(sizes) / 8);
-                // the prefix count of opaque entries along the value axis (at most
-                // one per entry, plus one)
-                let prefix = 4 * (entries + 1);
-                tables + pre + cells + prefix
-            }
-            _ => 0,
-        }
+        self.mode
+            .table_bytes(self.needs.grid.map(|g| g.grid_bytes(sizes)))
     }
 
     /// What the pass computes and precomputes, one item per entry (for `volcast
     /// check`).
     pub fn describe(&self, sizes: [usize; 3]) -> Vec<String> {
         let mut needs = Vec::new();
-        if let ModeSpec::Exact(_) = self.mode {
+        if self.mode.is_exact() {
             needs.push(
                 "exact integration of the trilinear interpolant, cell by cell (no step)".into(),
             );
@@ -443,13 +323,7 @@ impl RenderPass {
         if let Some(g) = self.needs.gradient_volume {
             needs.push(format!("{} gradient volume", g.name()));
         }
-        let shader = match &self.mode {
-            ModeSpec::Surface(s) => Some(&s.shader),
-            ModeSpec::Exact(Exact::Surface { shader, .. }) => Some(shader),
-            ModeSpec::Composite { shader, .. } => shader.as_ref(),
-            _ => None,
-        };
-        if let Some(sh) = shader {
+        if let Some(sh) = self.mode.shader() {
             if self.gradient == GradientMethod::Analytic {
                 needs.push(format!(
                     "analytic gradients of the {} spline, on the fly",
@@ -473,52 +347,10 @@ impl RenderPass {
                 human_bytes(PAIR_TABLE_BYTES)
             ));
         }
-        if let ModeSpec::Composite {
-            transfer_name,
-            transfer,
-            preintegrated,
-            ..
-        } = &self.mode
-        {
-            let n = match transfer {
-                Transfer::OneD(_) => TABLE_1D,
-                Transfer::TwoD(_) => TABLE_2D * TABLE_2D,
-            };
-            needs.push(format!("transfer table `{transfer_name}` ({n} entries)"));
-            if *preintegrated {
-                needs.push(format!(
-                    "pre-integration table ({} integral entries, {}x{} segment colours for this step, {})",
-                    INTEGRAL_ENTRIES + 1,
-                    COLOR_ENTRIES,
-                    COLOR_ENTRIES,
-                    human_bytes(Preintegrated::planned_bytes())
-                ));
-            }
-        }
+        self.mode.describe_tables(&mut needs);
         if let Some(source) = self.needs.grid {
             let d = MacroGrid::dims(sizes);
-            let what = match (&self.mode, source) {
-                (ModeSpec::Xray(_) | ModeSpec::Average, _)
-                | (ModeSpec::Exact(Exact::Xray { .. } | Exact::Average), _) => "all-zero cells",
-                (ModeSpec::Mip, _) => {
-                    "cells that cannot beat the running maximum, walking only where cells are not all zero"
-                }
-                (ModeSpec::Exact(Exact::Mip), _) => "cells that cannot beat the running maximum",
-                // as its windows are (zero cells, for a threshold above zero)
-                (ModeSpec::Lmip(l), _) if l.window_passes(0, [0.0; 2]).is_some() => {
-                    "cells that cannot reach the threshold, walking only where cells are not all zero"
-                }
-                (ModeSpec::CuedMip(_) | ModeSpec::Exact(Exact::CuedMip(_)), _) => {
-                    "cells that cannot beat the running weighted maximum"
-                }
-                (ModeSpec::Minip | ModeSpec::Exact(Exact::Minip), _) => {
-                    "cells that cannot beat the running minimum"
-                }
-                (ModeSpec::Composite { .. }, _) => {
-                    "cells where the transfer function is transparent"
-                }
-                _ => "cells that cannot reach the threshold",
-            };
+            let what = self.mode.skips();
             let of = match source {
                 GridSource::Voxels(Support::LinearOctants) => "voxels, and of each cell's octants",
                 GridSource::Voxels(_) => "voxels",
@@ -537,8 +369,26 @@ impl RenderPass {
     }
 
     /// Builds the pass's tables over the run's shared precomputations and returns
-    /// it ready to render: the one place where the voxel type, the filter and the
-    /// mode are matched.
+    /// it ready to render. The mode builds its integrand ([`RayMode::view`]) and
+    /// [`RenderPass::render_with`] meets it with the voxel type and the filter.
+    pub fn prepare<'a>(&'a self, res: &'a Resources<'a>) -> Box<dyn RenderView + 'a> {
+        assert_eq!(
+            res.data.scalar_type(),
+            self.scalar_type,
+            "the volume has the type its header announced"
+        );
+        self.mode.view(self, res)
+    }
+
+    /// The pass's macrocell grid among the run's precomputations, if it skips.
+    pub fn grid<'a>(&self, res: &'a Resources<'a>) -> Option<&'a MacroGrid> {
+        self.needs.grid.and_then(|s| res.grid(s))
+    }
+
+    /// The view that renders `integrand` over the pass's field: the one place where
+    /// the voxel type, the reconstruction filter and the mode's integrand meet, in
+    /// a [`Kernel`] generic over all three, so no match on any of them is left in
+    /// the loops over pixels and samples.
     ///
     /// The combinations that matter for speed are compiled for every mode: the
     /// trilinear filter over 8-bit (signed or unsigned: their bits index one
@@ -547,13 +397,12 @@ impl RenderPass {
     /// combinations (nearest and B-spline filters, 32- and 64-bit integer and float64
     /// voxels) reach their filter through one virtual call per sample, which keeps
     /// the build small; their inner loops are otherwise the same.
-    pub fn prepare<'a>(&'a self, res: &'a Resources<'a>) -> Box<dyn RenderView + 'a> {
-        assert_eq!(
-            res.data.scalar_type(),
-            self.scalar_type,
-            "the volume has the type its header announced"
-        );
-        let exact = matches!(self.mode, ModeSpec::Exact(_));
+    pub fn render_with<'a, I: Integrand + 'a>(
+        &'a self,
+        res: &'a Resources<'a>,
+        integrand: I,
+    ) -> Box<dyn RenderView + 'a> {
+        let exact = self.mode.is_exact();
         match (self.interpolation, self.scalar_type) {
             (Interpolation::Cubic, _) if !exact => {
                 let coefficients = res
@@ -567,24 +416,26 @@ impl RenderPass {
                     res.index_from_world.transpose(),
                     self.dyn_field(res, Interpolation::Trilinear),
                 );
-                self.with_field(cubic, res)
+                Box::new(self.kernel(cubic, integrand, res))
             }
             (Interpolation::Trilinear, ScalarType::Uint8 | ScalarType::Int8) => {
-                self.with_field(self.trilinear::<u8>(res), res)
+                Box::new(self.kernel(self.trilinear::<u8>(res), integrand, res))
             }
             (Interpolation::Trilinear, ScalarType::Uint16 | ScalarType::Int16) => {
-                self.with_field(self.trilinear::<u16>(res), res)
+                Box::new(self.kernel(self.trilinear::<u16>(res), integrand, res))
             }
             (Interpolation::Trilinear, ScalarType::Float32) => {
-                self.with_field(self.trilinear::<f32>(res), res)
+                Box::new(self.kernel(self.trilinear::<f32>(res), integrand, res))
             }
-            (interpolation, _) => self.with_field(self.dyn_field(res, interpolation), res),
+            (interpolation, _) => {
+                Box::new(self.kernel(self.dyn_field(res, interpolation), integrand, res))
+            }
         }
     }
 
     /// The grid over the volume's voxels as `T`: their own type, or the unsigned
     /// type of the same size for 8- and 16-bit data (read as bits).
-    fn grid<'a, T: Voxel>(&self, res: &'a Resources<'a>) -> Grid<'a, T> {
+    fn grid_of<'a, T: Voxel>(&self, res: &'a Resources<'a>) -> Grid<'a, T> {
         let voxels = match self.scalar_type {
             ScalarType::Int8 => res.data.voxels::<i8>().map(|v| v.reinterpret::<T>()),
             ScalarType::Int16 => res.data.voxels::<i16>().map(|v| v.reinterpret::<T>()),
@@ -612,7 +463,7 @@ impl RenderPass {
 
     fn trilinear<'a, T: Voxel>(&self, res: &'a Resources<'a>) -> Trilinear<'a, T> {
         Trilinear {
-            grid: self.grid::<T>(res),
+            grid: self.grid_of::<T>(res),
             gradients: self.gradients(res),
         }
     }
@@ -628,7 +479,7 @@ impl RenderPass {
             res: &'a Resources<'a>,
             interpolation: Interpolation,
         ) -> Box<dyn Field + 'a> {
-            let (grid, gradients) = (pass.grid::<T>(res), pass.gradients(res));
+            let (grid, gradients) = (pass.grid_of::<T>(res), pass.gradients(res));
             match interpolation {
                 Interpolation::Nearest => Box::new(Nearest { grid, gradients }),
                 Interpolation::BSpline => Box::new(BSpline { grid, gradients }),
@@ -650,7 +501,7 @@ impl RenderPass {
         }
     }
 
-    fn kernel<'a, F: Field, I: super::integrator::Integrand>(
+    fn kernel<'a, F: Field, I: Integrand>(
         &'a self,
         field: F,
         integrand: I,
@@ -659,63 +510,31 @@ impl RenderPass {
         Kernel::new(
             field,
             integrand,
-            self.needs.grid.and_then(|s| res.grid(s)),
+            self.grid(res),
             self.dt,
             self.jitter,
             &self.clips,
         )
     }
+}
 
-    fn with_field<'a, F: Field + 'a>(
-        &'a self,
-        field: F,
-        res: &'a Resources<'a>,
-    ) -> Box<dyn RenderView + 'a> {
-        match &self.mode {
-            ModeSpec::Xray(x) => Box::new(self.kernel(field, *x, res)),
-            ModeSpec::Mip => Box::new(self.kernel(field, Mip, res)),
-            ModeSpec::CuedMip(c) => Box::new(self.kernel(field, *c, res)),
-            ModeSpec::Minip => Box::new(self.kernel(field, Minip, res)),
-            ModeSpec::Average => Box::new(self.kernel(field, Average, res)),
-            ModeSpec::Lmip(l) => Box::new(self.kernel(field, *l, res)),
-            ModeSpec::Depth(d) => Box::new(self.kernel(field, *d, res)),
-            ModeSpec::Surface(s) => Box::new(self.kernel(field, *s, res)),
-            ModeSpec::Composite {
-                transfer,
-                shader,
-                reference_step_voxels,
-                early_stop,
-                preintegrated,
-                ..
-            } => {
-                let table = match transfer {
-                    Transfer::OneD(t) => CompositeTable::OneD(t.table(TABLE_1D)),
-                    Transfer::TwoD(t) => CompositeTable::TwoD(t.table(TABLE_2D, TABLE_2D)),
-                };
-                let pre = match (preintegrated, transfer) {
-                    (true, Transfer::OneD(tf)) => Some(Preintegrated::build(
-                        tf,
-                        self.step_voxels / reference_step_voxels,
-                    )),
-                    _ => None,
-                };
-                let mut c = Composite::new(
-                    table,
-                    self.dt,
-                    reference_step_voxels * self.voxel_length,
-                    *shader,
-                    *early_stop,
-                    self.voxel_length,
-                    pre,
-                );
-                if let Some(g) = self.needs.grid.and_then(|s| res.grid(s)) {
-                    c.classify(g);
-                }
-                Box::new(self.kernel(field, c, res))
-            }
-            // exact passes walk the trilinear interpolant (the scene asks for it)
-            ModeSpec::Exact(e) => Box::new(self.kernel(field, e.clone(), res)),
+/// The ranges `mode`'s skipping grid holds for samples reconstructed with
+/// `interpolation`.
+fn grid_source(mode: &dyn RayMode, interpolation: Interpolation) -> GridSource {
+    match interpolation {
+        // all-zero cells need exact zeros; the other modes take the narrower ranges
+        // without the margin
+        Interpolation::Nearest | Interpolation::Trilinear if mode.skips_zero_cells() => {
+            GridSource::Voxels(Support::Linear)
         }
+        Interpolation::Nearest | Interpolation::Trilinear if mode.skips_octants() => {
+            GridSource::Voxels(Support::LinearOctants)
+        }
+        Interpolation::Nearest | Interpolation::Trilinear => {
+            GridSource::Voxels(Support::LinearTight)
+        }
+        Interpolation::BSpline => GridSource::Voxels(Support::Cubic),
+        Interpolation::Cubic => GridSource::Coefficients,
     }
 }
 

@@ -19,9 +19,13 @@ use glam::DVec3;
 pub use diag::{Diagnostic, SceneError};
 pub use path::{Channel, Keyframes, OrbitPath};
 
-use crate::sample::{GradientMethod, Interpolation};
-use crate::shade::{Material, Model};
-use crate::transfer::{Transfer1D, Transfer2D};
+pub use crate::mode::projection::MipOutput;
+pub use crate::mode::{Mode, Shading};
+pub use crate::render::camera::{Camera, Projection, ZoomFit};
+pub use crate::render::integrator::XrayOutput;
+pub use crate::transfer::Transfer;
+
+use crate::sample::Interpolation;
 use crate::volume::VolumeSource;
 
 /// A validated scene: everything needed to plan and render, with defaults filled in.
@@ -103,47 +107,6 @@ impl Units {
             Units::Data { lo, hi } => lo + t * (hi - lo),
         }
     }
-}
-
-/// Perspective or parallel projection.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Projection {
-    /// Pinhole camera.
-    Perspective,
-    /// Parallel rays.
-    Orthographic,
-}
-
-/// The camera description of docs/scene-reference.md.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Camera {
-    /// Projection.
-    pub projection: Projection,
-    /// Vertical field of view in degrees (perspective).
-    pub fov_deg: f64,
-    /// Degrees, counter-clockwise about `up` seen from above.
-    pub azimuth_deg: f64,
-    /// Degrees towards `up`.
-    pub elevation_deg: f64,
-    /// World up, also the orbit axis (unit length).
-    pub up: DVec3,
-    /// Image magnification (1 until a `zoom = "fit"` is computed).
-    pub zoom: f64,
-    /// `zoom = "fit"`: the zoom is computed from the voxels when they are loaded.
-    pub fit: Option<ZoomFit>,
-    /// Eye-target distance in world units (perspective); `None` frames the bounding sphere.
-    pub distance: Option<f64>,
-    /// Look-at point; `None` = the centre of the volume's box.
-    pub target: Option<DVec3>,
-}
-
-/// `[camera] zoom = "fit"`: one zoom for every frame that frames the box of the
-/// voxels at or above `threshold`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ZoomFit {
-    /// Normalised value (`fit_threshold`); `None` = the scene passes' smallest
-    /// threshold, iso value, first opaque knot or window low end.
-    pub threshold: Option<f64>,
 }
 
 /// The frames' camera path: on the default circle, frame k at `azimuth + k *
@@ -307,166 +270,13 @@ pub struct ImageSpec {
     pub colorbar: bool,
 }
 
-/// What an X-ray pass stores.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum XrayOutput {
-    /// `mu` times the line integral of the normalised value (world units).
-    Integral,
-    /// `1 - exp(-integral)`.
-    Absorbed,
-    /// `exp(-integral)`.
-    Transmitted,
-}
-
-/// Shading settings of surface and shaded composite passes.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Shading {
-    /// Reflection model.
-    pub model: Model,
-    /// Material coefficients.
-    pub material: Material,
-    /// Name of the material (for the plan).
-    pub material_name: String,
-    /// Gradient estimator for the normals.
-    pub gradient: GradientMethod,
-}
-
-/// A named transfer function.
-#[derive(Clone, Debug)]
-pub enum Transfer {
-    /// Over the normalised value.
-    OneD(Arc<Transfer1D>),
-    /// Over (value, gradient magnitude).
-    TwoD(Arc<Transfer2D>),
-}
-
-/// The scene-file names of the render modes, in the order of [`Mode`]'s variants.
-pub const MODE_NAMES: &[&str] = &[
-    "xray",
-    "mip",
-    "minip",
-    "average",
-    "lmip",
-    "depth",
-    "surface",
-    "composite",
-];
-
-/// What a MIP pass stores per pixel (`output`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum MipOutput {
-    /// The (depth-cued) maximum.
-    Value,
-    /// The depth `s` of the first sample that reaches the maximum (NaN where the
-    /// ray misses).
-    DepthOfMax,
-    /// Colour: the map at `s / D` times the maximum's brightness in the pass's
-    /// window.
-    DepthCoded(crate::transfer::Colormap),
-}
-
-/// What a pass computes per ray, with its parameters.
-#[derive(Clone, Debug)]
-pub enum Mode {
-    /// Line integral / Beer-Lambert.
-    Xray {
-        /// Stored quantity.
-        output: XrayOutput,
-        /// Attenuation scale.
-        mu: f64,
-    },
-    /// Maximum intensity projection, optionally depth-cued.
-    Mip {
-        /// `c` in [0, 1]: each sample is weighted by `1 - c s / D` before the
-        /// maximum (`s` the depth from the bounding sphere's entry, `D` its
-        /// diameter); 0 = the plain MIP.
-        depth_cue: f64,
-        /// What is stored.
-        output: MipOutput,
-    },
-    /// Minimum intensity projection.
-    Minip,
-    /// Path-length weighted mean along the ray.
-    Average,
-    /// First local maximum above `threshold` (falls back to the MIP where the ray never exceeds it).
-    Lmip {
-        /// Normalised value.
-        threshold: f64,
-    },
-    /// Distance to the first crossing of `threshold`.
-    Depth {
-        /// Normalised value.
-        threshold: f64,
-    },
-    /// Shaded first crossing of `iso`.
-    Surface {
-        /// Normalised iso value.
-        iso: f64,
-        /// Shading settings.
-        shading: Shading,
-    },
-    /// Emission-absorption compositing, front to back.
-    Composite {
-        /// Transfer function name (for the plan and messages).
-        transfer_name: String,
-        /// The transfer function.
-        transfer: Transfer,
-        /// Optional shading of each sample.
-        shading: Option<Shading>,
-        /// The step (in voxels of the smallest spacing) the transfer function's alpha is defined for.
-        reference_step_voxels: f64,
-        /// Stop when the accumulated opacity reaches this (1 = never stop early).
-        early_stop: f64,
-        /// Pre-integrated segments (1D transfer functions only).
-        preintegrated: bool,
-    },
-}
-
-impl Mode {
-    /// The scene-file name of the mode.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Mode::Xray { .. } => "xray",
-            Mode::Mip { .. } => "mip",
-            Mode::Minip => "minip",
-            Mode::Average => "average",
-            Mode::Lmip { .. } => "lmip",
-            Mode::Depth { .. } => "depth",
-            Mode::Surface { .. } => "surface",
-            Mode::Composite { .. } => "composite",
-        }
-    }
-
-    /// True for modes whose image is one grey value per pixel.
-    pub fn is_intensity(&self) -> bool {
-        !matches!(
-            self,
-            Mode::Surface { .. }
-                | Mode::Composite { .. }
-                | Mode::Mip {
-                    output: MipOutput::DepthCoded(_),
-                    ..
-                }
-        )
-    }
-
-    /// The shading settings, for modes that shade.
-    pub fn shading(&self) -> Option<&Shading> {
-        match self {
-            Mode::Surface { shading, .. } => Some(shading),
-            Mode::Composite { shading, .. } => shading.as_ref(),
-            _ => None,
-        }
-    }
-}
-
 /// One `[[render]]` pass.
 #[derive(Clone, Debug)]
 pub struct RenderPass {
     /// File name prefix.
     pub name: String,
-    /// Mode and its parameters.
-    pub mode: Mode,
+    /// Mode and its settings.
+    pub mode: Arc<dyn Mode>,
     /// Sample spacing in voxels of the smallest axis spacing.
     pub step_voxels: f64,
     /// Reconstruction filter.

@@ -26,6 +26,26 @@ pub use preintegrated::{Preintegrated, COLOR_ENTRIES, INTEGRAL_ENTRIES, MAX_EXTI
 pub use presets::{Preset, PRESETS};
 pub use two_d::{Table2D, Transfer2D, Widget, WidgetShape};
 
+/// A transfer function over the normalised value, or over (value, gradient
+/// magnitude).
+#[derive(Clone, Debug)]
+pub enum Transfer {
+    /// Over the normalised value.
+    OneD(std::sync::Arc<Transfer1D>),
+    /// Over (value, gradient magnitude).
+    TwoD(std::sync::Arc<Transfer2D>),
+}
+
+impl Transfer {
+    /// The smallest normalised value with a non-zero opacity.
+    pub fn first_opaque(&self) -> Option<f64> {
+        match self {
+            Transfer::OneD(tf) => tf.first_opaque(),
+            Transfer::TwoD(tf) => tf.first_opaque(),
+        }
+    }
+}
+
 /// How a 1D transfer function interpolates between its knots.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Interpolation {

@@ -31,11 +31,11 @@ use super::crossing::{Entry, Hit};
 use super::root::illinois;
 use super::xray::finish;
 pub use super::CuedMip;
+use super::XrayOutput;
 use super::{Counts, Integrand, PixelRay};
 use crate::render::march::March;
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;
-use crate::scene::XrayOutput;
 use crate::shade::Shader;
 
 /// What an exact pass computes per ray.

@@ -24,7 +24,7 @@ pub use composite::{Composite, CompositeTable};
 pub use crossing::{Depth, Surface};
 pub use exact::Exact;
 pub use projection::{Average, CuedMip, CuedOutput, Lmip, Minip, Mip};
-pub use xray::Xray;
+pub use xray::{Xray, XrayOutput};
 
 use super::clip::Cut;
 use super::march::{Lattice, March};
@@ -659,7 +659,7 @@ mod tests {
     /// comparison can tell.
     #[test]
     fn integrands_that_skip_the_depth_reference_do_not_read_it() {
-        use crate::scene::XrayOutput;
+        use super::XrayOutput;
         use crate::transfer::{Interpolation as Ramp, Transfer1D};
         let v: Vec<f32> = (0..40).map(|i| ((i as f32) * 0.37).sin().abs()).collect();
         let field = Line(&v);

@@ -8,7 +8,17 @@ use super::{drive, Consumer, Counts, Integrand, PixelRay};
 use crate::render::march::March;
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;
-use crate::scene::XrayOutput;
+
+/// What an X-ray pass stores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum XrayOutput {
+    /// `mu` times the line integral of the normalised value (world units).
+    Integral,
+    /// `1 - exp(-integral)`.
+    Absorbed,
+    /// `exp(-integral)`.
+    Transmitted,
+}
 
 /// The line integral, as the pass stores it.
 #[derive(Clone, Copy, Debug, PartialEq)]

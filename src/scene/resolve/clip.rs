@@ -9,7 +9,7 @@ use toml::Spanned;
 use super::Resolver;
 use crate::scene::diag::{quoted_list, suggest};
 use crate::scene::schema::ClipTable;
-use crate::scene::{Clip, Mode, RenderPass};
+use crate::scene::{Clip, RenderPass};
 
 impl Resolver<'_> {
     pub(super) fn clips(
@@ -97,10 +97,9 @@ impl Resolver<'_> {
                 passes: selected,
             };
             if cap
-                && !passes.iter().any(|p| {
-                    clip.applies_to(&p.name)
-                        && matches!(p.mode, Mode::Surface { .. } | Mode::Depth { .. })
-                })
+                && !passes
+                    .iter()
+                    .any(|p| clip.applies_to(&p.name) && p.mode.caps_clips())
             {
                 self.warnings.push(format!(
                     "[[clip]]{}: cap = true has no effect: it caps surface and depth passes, and the plane applies to none",

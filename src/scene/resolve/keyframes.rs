@@ -9,7 +9,7 @@ use toml::Spanned;
 use super::Resolver;
 use crate::scene::diag::{quoted_list, suggest};
 use crate::scene::schema::{KeyframeTable, OrbitTable, Sp};
-use crate::scene::{Channel, Clip, Keyframes, Mode, Orbit, OrbitPath, RenderPass};
+use crate::scene::{Channel, Clip, Keyframes, Orbit, OrbitPath, RenderPass};
 
 /// A camera key of a keyframe: its name, value, test and what it expects.
 type CameraCheck<'a> = (&'a str, &'a Sp<f64>, &'a dyn Fn(f64) -> bool, &'a str);
@@ -145,11 +145,11 @@ impl Resolver<'_> {
                     continue;
                 };
                 let kt = table.get_ref();
-                let (key, value) = match &passes[p].mode {
-                    Mode::Surface { .. } => ("iso", &kt.iso),
-                    Mode::Depth { .. } | Mode::Lmip { .. } => ("threshold", &kt.threshold),
-                    m => {
-                        self.err(table.span(), format!("[[keyframe]] render.{name}: pass `{name}` has mode = \"{}\", which has no iso value or threshold to animate", m.name()));
+                let (key, value) = match passes[p].mode.level() {
+                    Some(l) if l.key == "iso" => ("iso", &kt.iso),
+                    Some(_) => ("threshold", &kt.threshold),
+                    None => {
+                        self.err(table.span(), format!("[[keyframe]] render.{name}: pass `{name}` has mode = \"{}\", which has no iso value or threshold to animate", passes[p].mode.name()));
                         continue;
                     }
                 };

@@ -7,45 +7,13 @@ use std::sync::Arc;
 use toml::Spanned;
 
 use super::Resolver;
+use crate::mode::{self, projection::MipOutput, projection::Projection, Keys, Shading};
 use crate::sample::{GradientMethod, Interpolation};
 use crate::scene::diag::{quoted_list, suggest};
 use crate::scene::schema::RenderTable;
-use crate::scene::{
-    Integration, MipOutput, Mode, RenderPass, Shading, Transfer, Units, XrayOutput,
-};
+use crate::scene::{Integration, RenderPass, Transfer, Units};
 use crate::shade::{Material, Model};
 use crate::transfer;
-
-/// Which render modes use each mode-specific key of `[[render]]`.
-const MODE_KEYS: &[(&str, &[&str])] = &[
-    ("output", &["xray", "mip"]),
-    ("mu", &["xray"]),
-    ("depth_cue", &["mip"]),
-    (
-        "colormap",
-        &["xray", "mip", "minip", "average", "lmip", "depth"],
-    ),
-    ("threshold", &["lmip", "depth"]),
-    ("iso", &["surface"]),
-    ("material", &["surface", "composite"]),
-    ("shading", &["surface", "composite"]),
-    ("gradient", &["surface", "composite"]),
-    ("transfer", &["composite"]),
-    ("reference_step", &["composite"]),
-    ("early_stop", &["composite"]),
-    (
-        "window",
-        &["xray", "mip", "minip", "average", "lmip", "depth"],
-    ),
-    (
-        "integration",
-        &["xray", "mip", "minip", "average", "depth", "surface"],
-    ),
-    ("jitter", MODES),
-    ("preintegrated", &["composite"]),
-];
-
-use super::super::MODE_NAMES as MODES;
 
 /// The neutral material's name (a white plastic, the default of shaded passes).
 pub const NEUTRAL: &str = "neutral";
@@ -60,10 +28,10 @@ impl Resolver<'_> {
         let Some(tables) = tables else {
             return vec![RenderPass {
                 name: "mip".into(),
-                mode: Mode::Mip {
+                mode: Arc::new(Projection::Mip {
                     depth_cue: 0.0,
                     output: MipOutput::Value,
-                },
+                }),
                 step_voxels: 0.5,
                 interpolation: Interpolation::Trilinear,
                 window: None,
@@ -105,31 +73,32 @@ impl Resolver<'_> {
                 t.span(),
                 format!(
                     "[[render]] needs `mode`: one of {}",
-                    quoted_list(MODES.iter().copied())
+                    quoted_list(mode::names())
                 ),
             );
             return None;
         };
         let mode_name = mode_s.get_ref().as_str();
-        if !MODES.contains(&mode_name) {
-            let hint = suggest(mode_name, MODES.iter().copied())
+        let Some(registration) = mode::find(mode_name) else {
+            let hint = suggest(mode_name, mode::names())
                 .map(|n| format!("; did you mean `{n}`?"))
                 .unwrap_or_default();
             self.err(
                 mode_s.span(),
                 format!(
                     "mode = \"{mode_name}\" is not known: expected one of {}{hint}",
-                    quoted_list(MODES.iter().copied())
+                    quoted_list(mode::names())
                 ),
             );
             return None;
-        }
+        };
         for (key, span) in v.present_keys() {
-            let users = MODE_KEYS
-                .iter()
-                .find(|(k, _)| *k == key)
-                .map_or(&[][..], |(_, m)| *m);
-            if !users.contains(&mode_name) {
+            if !registration.keys.contains(&key) {
+                let users: Vec<&str> = mode::MODES
+                    .iter()
+                    .filter(|m| m.keys.contains(&key))
+                    .map(|m| m.name)
+                    .collect();
                 self.err(
                     span,
                     format!(
@@ -181,12 +150,8 @@ impl Resolver<'_> {
         );
         let window = self.window("window", &v.window).and_then(|w| {
             // the grey window of a value-based pass is on the value axis
-            // (a MIP's depth of the maximum is a distance, like a depth pass's)
-            let distance = v.output.as_ref().map(|o| o.get_ref().as_str()) == Some("depth-of-max");
-            if !matches!(mode_name, "mip" | "minip" | "average" | "lmip")
-                || distance
-                || self.units == Units::Normalised
-            {
+            let probe = PassProbe(v);
+            if !(registration.window_in_values)(&probe) || self.units == Units::Normalised {
                 return Some(w);
             }
             let span = v.window.as_ref().map(|s| s.span()).unwrap_or_default();
@@ -201,96 +166,14 @@ impl Resolver<'_> {
             crate::transfer::Colormap::ALL,
             crate::transfer::Colormap::Turbo,
         );
-        let mode = match mode_name {
-            "xray" => Mode::Xray {
-                output: self.choice(
-                    "output",
-                    &v.output,
-                    &[
-                        ("integral", XrayOutput::Integral),
-                        ("absorbed", XrayOutput::Absorbed),
-                        ("transmitted", XrayOutput::Transmitted),
-                    ],
-                    XrayOutput::Integral,
-                ),
-                mu: self.number("mu", &v.mu, 1.0, |x| x >= 0.0, "an attenuation scale >= 0"),
-            },
-            "mip" => self.mip(v, map),
-            "minip" => Mode::Minip,
-            "average" => Mode::Average,
-            "lmip" => Mode::Lmip {
-                threshold: self.value("threshold", &v.threshold, 0.5),
-            },
-            "depth" => Mode::Depth {
-                threshold: self.value("threshold", &v.threshold, 0.5),
-            },
-            "surface" => Mode::Surface {
-                iso: self.value("iso", &v.iso, 0.5),
-                shading: self.shading(v, materials, Model::Phong)?,
-            },
-            _ => {
-                let shaded = v.shading.as_ref().is_some_and(|s| s.get_ref() != "none");
-                if !shaded {
-                    for (k, s) in [("material", &v.material), ("gradient", &v.gradient)] {
-                        if let Some(s) = s {
-                            self.warnings.push(format!(
-                                "pass `{name}`: `{k} = \"{}\"` has no effect with shading = \"none\"",
-                                s.get_ref()
-                            ));
-                        }
-                    }
-                }
-                let shading = if shaded {
-                    Some(self.shading(v, materials, Model::Phong)?)
-                } else {
-                    None
-                };
-                let transfer_name = v
-                    .transfer
-                    .as_ref()
-                    .map_or("grey".to_string(), |t| t.get_ref().clone());
-                let span = v.transfer.as_ref().map_or(t.span(), |s| s.span());
-                let transfer = match transfers.get(&transfer_name) {
-                    Some(tf) => tf.clone(),
-                    None => self.preset(&transfer_name, transfers, span)?,
-                };
-                let preintegrated = v.preintegrated.as_ref().is_some_and(|p| *p.get_ref());
-                if let (true, Transfer::TwoD(_), Some(p)) =
-                    (preintegrated, &transfer, &v.preintegrated)
-                {
-                    self.err(p.span(), format!(
-                        "preintegrated = true needs a 1D transfer function, but `{transfer_name}` is 2D (value x gradient magnitude); pre-integration tabulates segments over (front value, back value)"
-                    ));
-                }
-                if let Transfer::OneD(tf) = &transfer {
-                    if tf.max_alpha() == 0.0 {
-                        self.warnings.push(format!(
-                            "pass `{name}`: transfer function `{transfer_name}` has zero alpha everywhere: the image will be empty"
-                        ));
-                    }
-                }
-                Mode::Composite {
-                    transfer_name,
-                    transfer,
-                    shading,
-                    reference_step_voxels: self.number(
-                        "reference_step",
-                        &v.reference_step,
-                        1.0,
-                        |x| x > 0.0,
-                        "a positive step in voxels",
-                    ),
-                    early_stop: self.number(
-                        "early_stop",
-                        &v.early_stop,
-                        0.99,
-                        |x| x > 0.0 && x <= 1.0,
-                        "an opacity in (0, 1]",
-                    ),
-                    preintegrated,
-                }
-            }
-        };
+        let mode = (registration.resolve)(&mut PassKeys {
+            resolver: self,
+            table: t,
+            name: &name,
+            colormap: map,
+            materials,
+            transfers,
+        })?;
         if let (Some(sh), Some(g)) = (mode.shading(), &v.gradient) {
             if sh.gradient == GradientMethod::Analytic
                 && !matches!(interpolation, Interpolation::Cubic | Interpolation::BSpline)
@@ -304,14 +187,7 @@ impl Resolver<'_> {
         }
         // a depth-coded MIP's map colours the depth; every other intensity pass's
         // colours its windowed value
-        let depth_coded = matches!(
-            mode,
-            Mode::Mip {
-                output: MipOutput::DepthCoded(_),
-                ..
-            }
-        );
-        let colormap = (v.colormap.is_some() && !depth_coded).then_some(map);
+        let colormap = (v.colormap.is_some() && mode.is_intensity()).then_some(map);
         Some(RenderPass {
             name,
             mode,
@@ -322,39 +198,6 @@ impl Resolver<'_> {
             jitter,
             colormap,
         })
-    }
-
-    /// A MIP pass's depth cue and output; `map` colours the depth of a depth-coded one.
-    fn mip(&mut self, v: &RenderTable, map: crate::transfer::Colormap) -> Mode {
-        let depth_cue = self.number(
-            "depth_cue",
-            &v.depth_cue,
-            0.0,
-            |c| (0.0..=1.0).contains(&c),
-            "a weight from 0 (no depth cue) to 1 (the far side of the bounding sphere weighted 0)",
-        );
-        #[derive(Clone, Copy)]
-        enum Out {
-            Value,
-            DepthOfMax,
-            DepthCoded,
-        }
-        let out = self.choice(
-            "output",
-            &v.output,
-            &[
-                ("value", Out::Value),
-                ("depth-of-max", Out::DepthOfMax),
-                ("depth-coded", Out::DepthCoded),
-            ],
-            Out::Value,
-        );
-        let output = match out {
-            Out::Value => MipOutput::Value,
-            Out::DepthOfMax => MipOutput::DepthOfMax,
-            Out::DepthCoded => MipOutput::DepthCoded(map),
-        };
-        Mode::Mip { depth_cue, output }
     }
 
     /// The transfer-function preset `name` placed on the volume's window, or an error
@@ -498,4 +341,181 @@ fn valid_file_stem(s: &str) -> bool {
         && !s.starts_with('.')
         && s.chars()
             .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+}
+
+/// A pass's table as [`Registration::window_in_values`](mode::Registration) reads
+/// it (before the mode is resolved; it reads only strings, and reports nothing).
+struct PassProbe<'t>(&'t RenderTable);
+
+impl Keys for PassProbe<'_> {
+    fn pass_name(&self) -> &str {
+        ""
+    }
+    fn number(&mut self, _: &str, default: f64, _: fn(f64) -> bool, _: &str) -> f64 {
+        default
+    }
+    fn value(&mut self, _: &str, default: f64) -> f64 {
+        default
+    }
+    fn pick(&mut self, _: &str, _: &[&str], default: usize) -> usize {
+        default
+    }
+    fn flag(&self, key: &str) -> bool {
+        flag(self.0, key)
+    }
+    fn text(&self, key: &str) -> Option<&str> {
+        text(self.0, key)
+    }
+    fn colormap(&self) -> transfer::Colormap {
+        transfer::Colormap::Turbo
+    }
+    fn shading(&mut self) -> Option<Shading> {
+        None
+    }
+    fn transfer(&mut self) -> Option<(String, Transfer)> {
+        None
+    }
+    fn error(&mut self, _: &str, _: String) {}
+    fn warn(&mut self, _: String) {}
+}
+
+/// The string key `key` of a pass as written.
+fn text<'t>(v: &'t RenderTable, key: &str) -> Option<&'t str> {
+    let s = match key {
+        "output" => &v.output,
+        "colormap" => &v.colormap,
+        "material" => &v.material,
+        "shading" => &v.shading,
+        "gradient" => &v.gradient,
+        "transfer" => &v.transfer,
+        _ => return None,
+    };
+    s.as_ref().map(|s| s.get_ref().as_str())
+}
+
+/// The boolean key `key` of a pass (false when absent).
+fn flag(v: &RenderTable, key: &str) -> bool {
+    let b = match key {
+        "preintegrated" => &v.preintegrated,
+        "jitter" => &v.jitter,
+        _ => return false,
+    };
+    b.as_ref().is_some_and(|b| *b.get_ref())
+}
+
+/// One pass's keys as its mode reads them ([`mode::Keys`]): each read goes through
+/// the resolver's checks, so messages are the scene's own.
+struct PassKeys<'r, 'a, 't> {
+    resolver: &'r mut Resolver<'a>,
+    table: &'t Spanned<RenderTable>,
+    name: &'t str,
+    colormap: transfer::Colormap,
+    materials: &'t BTreeMap<String, Material>,
+    transfers: &'t BTreeMap<String, Transfer>,
+}
+
+impl PassKeys<'_, '_, '_> {
+    fn numeric(&self, key: &str) -> &'_ Option<Spanned<f64>> {
+        let v = self.table.get_ref();
+        match key {
+            "mu" => &v.mu,
+            "depth_cue" => &v.depth_cue,
+            "threshold" => &v.threshold,
+            "iso" => &v.iso,
+            "reference_step" => &v.reference_step,
+            "early_stop" => &v.early_stop,
+            _ => unreachable!("`{key}` is not a numeric key of [[render]]"),
+        }
+    }
+
+    fn string(&self, key: &str) -> &'_ Option<Spanned<String>> {
+        let v = self.table.get_ref();
+        match key {
+            "output" => &v.output,
+            "colormap" => &v.colormap,
+            "material" => &v.material,
+            "shading" => &v.shading,
+            "gradient" => &v.gradient,
+            "transfer" => &v.transfer,
+            _ => unreachable!("`{key}` is not a string key of [[render]]"),
+        }
+    }
+
+    /// Where `key` is written (the pass's table where it is absent).
+    fn span(&self, key: &str) -> Range<usize> {
+        let v = self.table.get_ref();
+        let at = match key {
+            "preintegrated" => v.preintegrated.as_ref().map(|s| s.span()),
+            "jitter" => v.jitter.as_ref().map(|s| s.span()),
+            "window" => v.window.as_ref().map(|s| s.span()),
+            "integration" => v.integration.as_ref().map(|s| s.span()),
+            "output" | "colormap" | "material" | "shading" | "gradient" | "transfer" => {
+                self.string(key).as_ref().map(|s| s.span())
+            }
+            _ => self.numeric(key).as_ref().map(|s| s.span()),
+        };
+        at.unwrap_or_else(|| self.table.span())
+    }
+}
+
+impl Keys for PassKeys<'_, '_, '_> {
+    fn pass_name(&self) -> &str {
+        self.name
+    }
+
+    fn number(&mut self, key: &str, default: f64, ok: fn(f64) -> bool, expected: &str) -> f64 {
+        let v = self.numeric(key).clone();
+        self.resolver.number(key, &v, default, ok, expected)
+    }
+
+    fn value(&mut self, key: &str, default: f64) -> f64 {
+        let v = self.numeric(key).clone();
+        self.resolver.value(key, &v, default)
+    }
+
+    fn pick(&mut self, key: &str, names: &[&str], default: usize) -> usize {
+        let options: Vec<(&str, usize)> = names.iter().copied().zip(0..).collect();
+        let v = self.string(key).clone();
+        self.resolver.choice(key, &v, &options, default)
+    }
+
+    fn flag(&self, key: &str) -> bool {
+        flag(self.table.get_ref(), key)
+    }
+
+    fn text(&self, key: &str) -> Option<&str> {
+        text(self.table.get_ref(), key)
+    }
+
+    fn colormap(&self) -> transfer::Colormap {
+        self.colormap
+    }
+
+    fn shading(&mut self) -> Option<Shading> {
+        self.resolver
+            .shading(self.table.get_ref(), self.materials, Model::Phong)
+    }
+
+    fn transfer(&mut self) -> Option<(String, Transfer)> {
+        let v = self.table.get_ref();
+        let name = v
+            .transfer
+            .as_ref()
+            .map_or("grey".to_string(), |t| t.get_ref().clone());
+        let span = self.span("transfer");
+        let tf = match self.transfers.get(&name) {
+            Some(tf) => tf.clone(),
+            None => self.resolver.preset(&name, self.transfers, span)?,
+        };
+        Some((name, tf))
+    }
+
+    fn error(&mut self, key: &str, message: String) {
+        let span = self.span(key);
+        self.resolver.err(span, message);
+    }
+
+    fn warn(&mut self, message: String) {
+        self.resolver.warnings.push(message);
+    }
 }
