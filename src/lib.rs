@@ -5,7 +5,8 @@
 //! ```text
 //! scene file --scene::load-------------> Scene (parsed, validated, paths absolute)
 //!            --VolumeSource::header----> VolumeHeader (sizes, type, geometry; no voxels)
-//!            --plan::Plan::build-------> Plan (views x passes, precomputations, memory)
+//!            --plan::Plan::build-------> Plan (views x passes, precomputations, memory;
+//!                                        each pass's mode::Mode plans its RayMode)
 //!            --VolumeSource::load------> Volume (native type, limits checked first)
 //!            --pipeline (fit)----------> Plan with the zoom of `zoom = "fit"`
 //!            --RenderPass::prepare-----> a RenderView per pass (tables, grids, gradients)
@@ -16,7 +17,8 @@
 //!
 //! The layers, from the bottom: [`label`], [`transfer`], [`shade`], [`batch`] and
 //! [`volume`] (readers, no rendering); [`sample`] (reconstruction of the field);
-//! [`scene`] (the file format); [`render`] (rays, passes and integrators);
+//! [`render`] (cameras, rays, passes and integrators); [`mode`] (the render modes,
+//! one module per family); [`scene`] (the file format);
 //! [`views`] and [`output`]; [`plan`]; [`histogram`]; [`pipeline`]; [`mod@bench`]. A
 //! module imports only from the layers below it. The scene-file reference and the
 //! formulas are in the user guide (`docs/`).

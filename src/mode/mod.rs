@@ -228,3 +228,106 @@ fn level_note(level: Level, ctx: &NoteContext<'_>) -> String {
     };
     format!("{what} {}", (ctx.show)(level.value))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pass with no mode-specific keys: every read takes its default.
+    struct Defaults;
+
+    impl Keys for Defaults {
+        fn pass_name(&self) -> &str {
+            "p"
+        }
+        fn number(&mut self, _: &str, default: f64, ok: fn(f64) -> bool, _: &str) -> f64 {
+            assert!(ok(default), "a mode's default passes its own check");
+            default
+        }
+        fn value(&mut self, _: &str, default: f64) -> f64 {
+            default
+        }
+        fn pick(&mut self, _: &str, names: &[&str], default: usize) -> usize {
+            assert!(default < names.len());
+            default
+        }
+        fn flag(&self, _: &str) -> bool {
+            false
+        }
+        fn text(&self, _: &str) -> Option<&str> {
+            None
+        }
+        fn colormap(&self) -> Colormap {
+            Colormap::Turbo
+        }
+        fn shading(&mut self) -> Option<Shading> {
+            Some(Shading {
+                model: Model::Phong,
+                material: Material::neutral(),
+                material_name: "neutral".into(),
+                gradient: GradientMethod::Central,
+            })
+        }
+        fn transfer(&mut self) -> Option<(String, Transfer)> {
+            let tf = crate::transfer::Transfer1D::new(
+                vec![(0.0, [1.0; 3])],
+                vec![(0.0, 0.0), (1.0, 1.0)],
+                crate::transfer::Interpolation::Linear,
+            )
+            .unwrap();
+            Some(("ramp".into(), Transfer::OneD(Arc::new(tf))))
+        }
+        fn error(&mut self, key: &str, message: String) {
+            panic!("defaults give no error, but `{key}`: {message}");
+        }
+        fn warn(&mut self, _: String) {}
+    }
+
+    #[test]
+    fn each_registration_resolves_to_its_own_mode() {
+        for (k, r) in MODES.iter().enumerate() {
+            assert!(
+                MODES[..k].iter().all(|o| o.name != r.name),
+                "{} is registered twice",
+                r.name
+            );
+            assert_eq!(find(r.name).map(|f| f.name), Some(r.name));
+            let mode = (r.resolve)(&mut Defaults).expect("defaults resolve");
+            assert_eq!(mode.name(), r.name);
+            assert!(r.keys.contains(&"jitter"), "{}: every mode jitters", r.name);
+        }
+        assert!(find("mip2").is_none());
+    }
+
+    #[test]
+    fn levels_are_the_keys_the_modes_take() {
+        for r in MODES {
+            let mode = (r.resolve)(&mut Defaults).unwrap();
+            if let Some(l) = mode.level() {
+                assert!(r.keys.contains(&l.key), "{}: {}", r.name, l.key);
+                assert_eq!(mode.fit_value(None), Some(l.value));
+            }
+            // a mode that shades takes the shading keys, and only those do
+            let shades = mode.shading().is_some() || r.keys.contains(&"shading");
+            assert_eq!(shades, r.keys.contains(&"material"), "{}", r.name);
+        }
+    }
+
+    #[test]
+    fn modes_are_listed_in_the_reference_order() {
+        let names: Vec<&str> = names().collect();
+        assert_eq!(
+            names,
+            [
+                "xray",
+                "mip",
+                "minip",
+                "average",
+                "lmip",
+                "depth",
+                "surface",
+                "composite"
+            ]
+        );
+    }
+}

@@ -253,9 +253,10 @@ mod tests {
     use glam::DVec3;
 
     use super::*;
+    use crate::mode::composite::{Composite, CompositeTable};
     use crate::render::footprint::tests::camera;
     use crate::render::integrator::XrayOutput;
-    use crate::render::integrator::{Average, Composite, CompositeTable, Xray};
+    use crate::render::integrator::{Average, Xray};
     use crate::render::skip::Support;
     use crate::sample::{GradientMethod, Interpolation, Normalize, Sampler};
     use crate::transfer::{Interpolation as Ramp, Transfer1D};

@@ -3,10 +3,12 @@
 //! channels.
 //!
 //! ```text
-//! pass.rs        RenderPass (planned) --prepare--> dyn RenderView (generic inside)
+//! pass.rs        RenderPass (planned) --prepare--> dyn RenderView (generic inside);
+//!                RayMode, a mode as the renderer runs it (implemented in crate::mode)
 //! frame.rs       the loop over a view's pixels, in tiles
 //! footprint.rs   per tile, the part of its rays a macrocell walk must cover
-//! integrator/    one type per mode: what a ray computes; `drive`, the one sampling loop
+//! integrator/    what a ray computes, one type per mode (compositing's is in
+//!                crate::mode::composite); `drive`, the one sampling loop
 //! march.rs       where a ray is sampled
 //! skip.rs        the macrocell grid and its walk (empty-space skipping)
 //! camera.rs, ray.rs   views, rays and their clipping to the volume's box

@@ -1,19 +1,22 @@
-//! Render passes: the one place that turns a scene's `[[render]]` pass into
-//! something that renders.
+//! Render passes: a mode as the renderer runs it ([`RayMode`], which each family of
+//! `crate::mode` implements), sampled as its pass says, over the run's shared
+//! precomputations.
 //!
 //! ```text
-//! scene pass + volume header --RenderPass::new--> RenderPass   (plan time: no voxels)
+//! mode's RayMode + Sampling + volume header --RenderPass::new--> RenderPass (no voxels)
 //!     .needs(), .channels(), .kind(), .table_bytes(), .describe()
 //! voxels + every pass's needs --Resources::build--> Resources   (shared precomputations)
 //! RenderPass + Resources --RenderPass::prepare--> Box<dyn RenderView>   (tables, skipping)
 //!     .render(view) -> Film
 //! ```
 //!
-//! [`RenderPass::prepare`] is where the types meet: it picks the voxel type, the
-//! reconstruction filter and the mode once, and builds a [`Kernel`] generic over
-//! all three, so no match on any of them is left in the loops over pixels and
-//! samples; everything above sees a `dyn RenderView`. Adding a mode, a filter, a
-//! skipping structure or another way to traverse the volume has this one place.
+//! [`RenderPass::prepare`] asks the mode for its view ([`RayMode::view`]): the mode
+//! builds its tables and its integrand and hands it to [`RenderPass::render_with`],
+//! where the types meet: the voxel type and the reconstruction filter are picked
+//! once, in a [`Kernel`] generic over both and the integrand, so no match on any of
+//! them is left in the loops over pixels and samples; everything above sees a `dyn
+//! RenderView`. A filter, a skipping structure or another way to traverse the volume
+//! has this one place; a mode has its family's module.
 
 use std::sync::OnceLock;
 

@@ -8,20 +8,17 @@
 //! order. Exact passes ([`Exact`], `exact.rs`) walk the voxel cells instead.
 //! Formulas: docs/formulas.md "Render modes" and "Emission-absorption and compositing".
 
-mod composite;
 mod crossing;
 mod exact;
 mod projection;
 mod root;
-mod unclear;
 mod xray;
 
 use std::ops::ControlFlow;
 
 use glam::DVec3;
 
-pub use composite::{Composite, CompositeTable};
-pub use crossing::{Depth, Surface};
+pub use crossing::{normal_from_gradient, Depth, Surface};
 pub use exact::Exact;
 pub use projection::{Average, CuedMip, CuedOutput, Lmip, Minip, Mip};
 pub use xray::{Xray, XrayOutput};
@@ -187,7 +184,7 @@ pub trait Consumer {
 /// [`Consumer::take_batch`], and the way of a consumer's own for the batches it
 /// does not handle at once).
 #[inline(always)]
-pub(super) fn take_each<C: Consumer + ?Sized>(
+pub fn take_each<C: Consumer + ?Sized>(
     consumer: &mut C,
     from: usize,
     ts: &[f64],
@@ -385,12 +382,12 @@ struct Batch {
     lanes: usize,
 }
 
-/// Samples per [`Batch`]: enough to amortise a call into the vector path (its
+/// Samples per batch of a ray's march: enough to amortise a call into the vector path (its
 /// constants and the tail of fewer than eight samples), few enough that a ray
 /// stopping early wastes little: faster than smaller batches for X-ray and
 /// composite frames, no different for MIP and iso-surface ones
-/// (`bench/peers/README.md`, "batches of 64").
-pub(super) const BATCH: usize = 64;
+/// (measured when it was chosen; the figures are in the commit).
+pub const BATCH: usize = 64;
 
 impl Default for Batch {
     fn default() -> Self {
@@ -526,7 +523,7 @@ pub fn trace<I: Integrand, F: Field>(
 
 /// Fields and rays along x for the integrators' tests.
 #[cfg(test)]
-pub(super) mod testing {
+pub(crate) mod testing {
     use glam::DVec3;
 
     use super::PixelRay;
@@ -660,6 +657,7 @@ mod tests {
     #[test]
     fn integrands_that_skip_the_depth_reference_do_not_read_it() {
         use super::XrayOutput;
+        use crate::mode::composite::{Composite, CompositeTable};
         use crate::transfer::{Interpolation as Ramp, Transfer1D};
         let v: Vec<f32> = (0..40).map(|i| ((i as f32) * 0.37).sin().abs()).collect();
         let field = Line(&v);

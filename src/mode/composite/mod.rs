@@ -4,9 +4,13 @@
 
 use std::sync::Arc;
 
+mod integrator;
+mod unclear;
+
+pub use integrator::{Composite, CompositeTable};
+
 use super::{Keys, Mode, PassContext, Registration, Shading};
 use crate::render::frame::RenderView;
-use crate::render::integrator::{Composite, CompositeTable};
 use crate::render::pass::{ImageKind, RayMode, RenderPass, Resources};
 use crate::shade::Shader;
 use crate::transfer::{Preintegrated, Transfer, COLOR_ENTRIES, INTEGRAL_ENTRIES};

@@ -17,7 +17,7 @@
 
 use std::mem::MaybeUninit;
 
-use super::BATCH;
+use crate::render::integrator::BATCH;
 
 /// The samples of a batch that are not clear: their indices in the batch, table
 /// entries and fractions, in order. Room for eight more than a batch, as the last

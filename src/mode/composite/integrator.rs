@@ -23,9 +23,10 @@ use std::ops::ControlFlow;
 
 use glam::{DVec3, Vec3, Vec4};
 
-use super::crossing::normal_from_gradient;
 use super::unclear::Unclear;
-use super::{drive, take_each, Consumer, Counts, Integrand, PixelRay, BATCH};
+use crate::render::integrator::{
+    drive, normal_from_gradient, take_each, Consumer, Counts, Integrand, PixelRay, BATCH,
+};
 use crate::render::march::{March, Midpoints};
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;
