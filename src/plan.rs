@@ -98,6 +98,10 @@ pub struct Plan {
     variant_of: Option<Vec<Vec<usize>>>,
     /// Per pass: whether its grey window comes from a preview pass.
     pub auto_window: Vec<bool>,
+    /// Per pass: its fixed grey window (`window`, normalised), if it has one.
+    pub windows: Vec<Option<[f64; 2]>>,
+    /// The file format of the images.
+    pub format: Format,
     /// The volume's box in index space and the map to it (rays are clipped to it).
     pub frame: IndexFrame,
     /// The bounding sphere of the box (what cameras frame).
@@ -197,6 +201,8 @@ impl Plan {
             variants,
             variant_of,
             auto_window,
+            windows: scene.passes.iter().map(|p| p.window).collect(),
+            format: scene.image.format,
             frame,
             sphere,
             preview: (width.div_ceil(4).max(8), height.div_ceil(4).max(8)),

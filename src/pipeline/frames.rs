@@ -62,7 +62,7 @@ pub(super) fn render_passes(
         index_from_world,
         &plan.passes,
     );
-    let windows = grey_windows(scene, plan, &resources);
+    let windows = grey_windows(plan, &resources);
 
     prepare()?;
     let views = &plan.views;
@@ -212,23 +212,22 @@ fn view_of(plan: &Plan, key: ViewKey, (w, h): (usize, usize)) -> View {
 /// Each pass's grey window: none for colour images and float NRRDs, the pass's
 /// own, or one found from a preview of every distinct view of the whole orbit
 /// (whatever frames this run renders, so that all runs agree).
-fn grey_windows(scene: &Scene, plan: &Plan, resources: &Resources) -> Vec<Option<Window>> {
+fn grey_windows(plan: &Plan, resources: &Resources) -> Vec<Option<Window>> {
     let views = &plan.views;
-    scene
-        .passes
+    plan.windows
         .iter()
         .zip(&plan.passes)
         .zip(&plan.auto_window)
         .enumerate()
-        .map(|(p, ((pass, rp), &auto))| {
-            if rp.kind() == ImageKind::Rgba || scene.image.format == Format::Nrrd {
+        .map(|(p, ((window, rp), &auto))| {
+            if rp.kind() == ImageKind::Rgba || plan.format == Format::Nrrd {
                 None
-            } else if let Some([lo, hi]) = pass.window {
+            } else if let Some([lo, hi]) = *window {
                 Some(Window { lo, hi })
             } else {
                 debug_assert!(auto);
                 // every distinct (variant, view) of the whole orbit
-                let orbit_views: BTreeSet<(usize, ViewKey)> = (0..scene.orbit.frames)
+                let orbit_views: BTreeSet<(usize, ViewKey)> = (0..views.orbit_frames())
                     .flat_map(|k| {
                         let v = plan.variant(p, k);
                         views.eyes().iter().map(move |&e| (v, views.key(k, e)))

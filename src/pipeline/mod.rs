@@ -203,7 +203,7 @@ impl Known {
                     .flat_map(|&k| (0..scene.passes.len()).map(move |p| (p, k)))
                     .collect())
             } else if opts.resume {
-                completed(scene, plan, digest)
+                completed(plan, digest)
             } else {
                 Ok(HashSet::new())
             }

@@ -33,7 +33,7 @@ pub fn completed_images(
         &manifest::scene_digest(scene, header, plan.width, plan.height),
         identity.data_xxh3.as_deref(),
     );
-    Ok(Some(completed(scene, plan, &digest)?.len()))
+    Ok(Some(completed(plan, &digest)?.len()))
 }
 
 /// The identity of the voxels when it is known without reading them: a synthetic
@@ -59,20 +59,16 @@ pub(super) fn trusted_identity(
 /// The (pass, frame) images of the plan's frames that `--resume` may skip: those
 /// whose record has `digest` and whose files all have the recorded size and
 /// SHA-256 (checked in parallel).
-pub(super) fn completed(
-    scene: &Scene,
-    plan: &Plan,
-    digest: &str,
-) -> Result<HashSet<(usize, usize)>, Error> {
+pub(super) fn completed(plan: &Plan, digest: &str) -> Result<HashSet<(usize, usize)>, Error> {
     let keys: Vec<(usize, usize)> = plan
         .frame_list
         .iter()
-        .flat_map(|&k| (0..scene.passes.len()).map(move |p| (p, k)))
+        .flat_map(|&k| (0..plan.passes.len()).map(move |p| (p, k)))
         .collect();
     let found: Vec<Option<(usize, usize)>> = keys
         .par_iter()
         .map(|&(p, k)| {
-            let r = manifest::read_record(&plan.out, &scene.passes[p].name, k)?;
+            let r = manifest::read_record(&plan.out, &plan.passes[p].name, k)?;
             Ok(r.filter(|r| manifest::is_complete(&plan.out, r, digest))
                 .map(|_| (p, k)))
         })
