@@ -7,7 +7,7 @@
  * measures throughput. Cycles are calibrated by a chain of dependent integer additions (one
  * cycle each). Where the 2023 "Gather Data Sampling" mitigation is in the microcode, a
  * gather is microcoded and costs about the same whatever its width; volcast's trilinear
- * paths (src/sample/grid/avx2.rs, avx512.rs) therefore read their voxels with scalar loads.
+ * paths (crates/volcast-render/src/sample/grid/avx2.rs, avx512.rs) therefore read their voxels with scalar loads.
  * bench/peers/README.md, "Loads, not gathers", has the figures. */
 #include <immintrin.h>
 #include <stdint.h>

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """CPU and wall time of writing a new 4 MiB file (a 512 x 512 RGBA float32 frame), synced as
 volcast syncs each image: through the page cache with write(2) calls of each size, and around
-it (O_DIRECT, one call from an aligned buffer, as src/output/write.rs writes whole files from
+it (O_DIRECT, one call from an aligned buffer, as crates/volcast-render/src/output/write.rs writes whole files from
 256 KiB). Medians of 15 files per way, in three rounds a few seconds apart. Not part of CI.
 
 On this project's virtual machines (Linux 6.18 guests that hand free memory back to their

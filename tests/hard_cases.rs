@@ -193,7 +193,7 @@ fn camera_inside_the_volume() {
 fn cameras_at_the_poles() {
     // looking straight down and up the orbit axis: the centre ray runs along z
     // through the Gaussian's centre; its integral is sqrt(2 pi) s erf(1 / (s sqrt 2))
-    // (erf(2.83) = 0.99994, from its series: see src/bench/truth.rs's test)
+    // (erf(2.83) = 0.99994, from its series: see crates/volcast-render/src/bench/truth.rs's test)
     let s: f64 = 0.25;
     let erf_value = 0.999_936_657_516_333_8;
     let want = (2.0 * std::f64::consts::PI).sqrt() * s * erf_value;

@@ -578,7 +578,7 @@ const METHODS: &str = "
   `marschner-lobb`.
 - **Views**: orthographic along +y (and along -x, which sees the same picture by symmetry);
   pixels whose rays cross the box are compared with the closed-form answer along the same
-  line (`src/bench/truth.rs`): chords and radial normals where closed forms exist, otherwise
+  line (`crates/volcast-render/src/bench/truth.rs`): chords and radial normals where closed forms exist, otherwise
   f64 numerics on the analytic function (Simpson with 20 000 intervals, dense scans refined
   by bisection or ternary search, compositing over 20 000 steps with exact opacities).
 - **Errors** are per pixel: absolute for grey modes (`depth` in world units; a pixel that

@@ -63,7 +63,7 @@ impl SpeedOptions {
 fn find_real_volume() -> Option<PathBuf> {
     [
         PathBuf::from("data/ct_engine.nrrd"),
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/ct_engine.nrrd"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/ct_engine.nrrd"),
     ]
     .into_iter()
     .find(|p| p.is_file())
