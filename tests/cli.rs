@@ -280,7 +280,7 @@ fn bench_speed_quick_measures_every_mode() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let md = String::from_utf8_lossy(&o.stdout);
-    for mode in volcast::bench::MODES {
+    for mode in volcast::mode::names() {
         assert!(md.contains(&format!("| {mode} |")), "{mode} missing:\n{md}");
     }
     assert!(

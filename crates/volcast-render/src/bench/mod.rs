@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 pub use accuracy::{GRID, STEPS};
-pub use speed::{speed, SpeedOptions, SpeedReport, SpeedRow, MODES};
+pub use speed::{speed, SpeedOptions, SpeedReport, SpeedRow};
 
 /// Errors of a bench run.
 #[derive(Debug, thiserror::Error)]

@@ -135,18 +135,6 @@ fn scene_text(volume: &str, mode: &str, size: usize, frames: usize) -> String {
     )
 }
 
-/// Every render mode.
-pub const MODES: [&str; 8] = [
-    "xray",
-    "mip",
-    "minip",
-    "average",
-    "lmip",
-    "depth",
-    "surface",
-    "composite",
-];
-
 /// Runs the speed bench; `progress(line)` reports each case as it ends.
 pub fn speed(
     opts: &SpeedOptions,
@@ -180,7 +168,7 @@ pub fn speed(
             Path::new("speed.toml"),
         )?;
         let volume = first.volume.source.load(&Limits::default())?;
-        for mode in MODES {
+        for mode in crate::mode::names() {
             let cases = case(opts, name, table, mode, &volume)?;
             let base = cases[0].ms_per_frame;
             for row in cases {
@@ -402,7 +390,7 @@ mod tests {
 
     #[test]
     fn every_mode_scene_resolves() {
-        for m in MODES {
+        for m in crate::mode::names() {
             let text = scene_text("synthetic = \"blobs\"\ntype = \"uint8\"", m, 8, 2);
             crate::scene::parse(&text, Path::new("s.toml")).expect(m);
         }

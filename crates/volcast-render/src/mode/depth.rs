@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use super::{level_note, Level, Mode, NoteContext, PassContext, Registration};
+use super::{Level, Mode, PassContext, Registration};
 use crate::render::frame::RenderView;
 use crate::render::integrator::{Depth, Exact};
 use crate::render::pass::{ImageKind, RayMode, RenderPass, Resources};
@@ -41,19 +41,6 @@ impl Mode for DepthSettings {
 
     fn caps_clips(&self) -> bool {
         true
-    }
-
-    fn notes(&self, ctx: &NoteContext<'_>) -> Vec<String> {
-        self.level()
-            .map(|l| level_note(l, ctx))
-            .into_iter()
-            .collect()
-    }
-
-    fn manifest(&self) -> serde_json::Map<String, serde_json::Value> {
-        let mut m = serde_json::Map::new();
-        m.insert("threshold".into(), self.threshold.into());
-        m
     }
 
     fn plan(&self, ctx: &PassContext) -> Arc<dyn RayMode> {

@@ -204,15 +204,22 @@ pub trait Mode: fmt::Debug + Send + Sync {
         false
     }
 
-    /// What `check` says of its settings, one item each.
-    fn notes(&self, _ctx: &NoteContext<'_>) -> Vec<String> {
-        Vec::new()
+    /// What `check` says of its settings, one item each (by default, its level).
+    fn notes(&self, ctx: &NoteContext<'_>) -> Vec<String> {
+        self.level()
+            .map(|l| level_note(l, ctx))
+            .into_iter()
+            .collect()
     }
 
-    /// Its settings in the manifest (beside the pass's name, mode, step,
-    /// interpolation, window and shading).
+    /// Its settings in the manifest, beside the pass's name, mode, step,
+    /// interpolation, window and shading (by default, its level under its key).
     fn manifest(&self) -> serde_json::Map<String, serde_json::Value> {
-        serde_json::Map::new()
+        let mut m = serde_json::Map::new();
+        if let Some(l) = self.level() {
+            m.insert(l.key.into(), l.value.into());
+        }
+        m
     }
 
     /// The mode as the renderer runs it.

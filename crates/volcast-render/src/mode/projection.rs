@@ -201,14 +201,6 @@ impl Mode for Projection {
         notes
     }
 
-    fn manifest(&self) -> serde_json::Map<String, serde_json::Value> {
-        let mut m = serde_json::Map::new();
-        if let Projection::Lmip { threshold } = self {
-            m.insert("threshold".into(), (*threshold).into());
-        }
-        m
-    }
-
     fn plan(&self, ctx: &PassContext) -> Arc<dyn RayMode> {
         let exact = ctx.exact;
         Arc::new(match *self {
