@@ -54,8 +54,9 @@ pub struct Registration {
     /// is an error naming the modes that take it).
     pub keys: &'static [&'static str],
     /// Whether the pass's grey `window` is on the value axis (so under `units =
-    /// "data"` it is written in data values), given the pass's keys.
-    pub window_in_values: fn(&dyn Keys) -> bool,
+    /// "data"` it is written in data values), given the pass's `output` key as
+    /// written (the window is read before the mode's other keys).
+    pub window_in_values: fn(Option<&str>) -> bool,
     /// The mode's settings from the pass's keys (`None`: an error was reported).
     pub resolve: fn(&mut dyn Keys) -> Option<Arc<dyn Mode>>,
 }

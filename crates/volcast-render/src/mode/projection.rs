@@ -23,7 +23,7 @@ pub const MIP: Registration = Registration {
         "jitter",
     ],
     // a MIP's depth of the maximum is a distance, like a depth pass's
-    window_in_values: |keys| keys.text("output") != Some("depth-of-max"),
+    window_in_values: |output| output != Some("depth-of-max"),
     resolve: |keys| Some(Arc::new(resolve_mip(keys))),
 };
 

@@ -53,10 +53,6 @@ impl Mode for XraySettings {
         "xray"
     }
 
-    fn fit_value(&self, _window: Option<[f64; 2]>) -> Option<f64> {
-        None
-    }
-
     fn manifest(&self) -> serde_json::Map<String, serde_json::Value> {
         let mut m = serde_json::Map::new();
         m.insert(

@@ -150,8 +150,8 @@ impl Resolver<'_> {
         );
         let window = self.window("window", &v.window).and_then(|w| {
             // the grey window of a value-based pass is on the value axis
-            let probe = PassProbe(v);
-            if !(registration.window_in_values)(&probe) || self.units == Units::Normalised {
+            let output = v.output.as_ref().map(|o| o.get_ref().as_str());
+            if !(registration.window_in_values)(output) || self.units == Units::Normalised {
                 return Some(w);
             }
             let span = v.window.as_ref().map(|s| s.span()).unwrap_or_default();
@@ -343,45 +343,9 @@ fn valid_file_stem(s: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
 }
 
-/// A pass's table as [`Registration::window_in_values`](mode::Registration) reads
-/// it (before the mode is resolved; it reads only strings, and reports nothing).
-struct PassProbe<'t>(&'t RenderTable);
-
-impl Keys for PassProbe<'_> {
-    fn pass_name(&self) -> &str {
-        ""
-    }
-    fn number(&mut self, _: &str, default: f64, _: fn(f64) -> bool, _: &str) -> f64 {
-        default
-    }
-    fn value(&mut self, _: &str, default: f64) -> f64 {
-        default
-    }
-    fn pick(&mut self, _: &str, _: &[&str], default: usize) -> usize {
-        default
-    }
-    fn flag(&self, key: &str) -> bool {
-        flag(self.0, key)
-    }
-    fn text(&self, key: &str) -> Option<&str> {
-        text(self.0, key)
-    }
-    fn colormap(&self) -> transfer::Colormap {
-        transfer::Colormap::Turbo
-    }
-    fn shading(&mut self) -> Option<Shading> {
-        None
-    }
-    fn transfer(&mut self) -> Option<(String, Transfer)> {
-        None
-    }
-    fn error(&mut self, _: &str, _: String) {}
-    fn warn(&mut self, _: String) {}
-}
-
-/// The string key `key` of a pass as written.
-fn text<'t>(v: &'t RenderTable, key: &str) -> Option<&'t str> {
-    let s = match key {
+/// The field of the mode-specific string key `key` (`None`: not one).
+fn string_key<'t>(v: &'t RenderTable, key: &str) -> Option<&'t Option<Spanned<String>>> {
+    Some(match key {
         "output" => &v.output,
         "colormap" => &v.colormap,
         "material" => &v.material,
@@ -389,18 +353,16 @@ fn text<'t>(v: &'t RenderTable, key: &str) -> Option<&'t str> {
         "gradient" => &v.gradient,
         "transfer" => &v.transfer,
         _ => return None,
-    };
-    s.as_ref().map(|s| s.get_ref().as_str())
+    })
 }
 
-/// The boolean key `key` of a pass (false when absent).
-fn flag(v: &RenderTable, key: &str) -> bool {
-    let b = match key {
+/// The field of the mode-specific boolean key `key` (`None`: not one).
+fn bool_key<'t>(v: &'t RenderTable, key: &str) -> Option<&'t Option<Spanned<bool>>> {
+    Some(match key {
         "preintegrated" => &v.preintegrated,
         "jitter" => &v.jitter,
-        _ => return false,
-    };
-    b.as_ref().is_some_and(|b| *b.get_ref())
+        _ => return None,
+    })
 }
 
 /// One pass's keys as its mode reads them ([`mode::Keys`]): each read goes through
@@ -429,29 +391,16 @@ impl PassKeys<'_, '_, '_> {
     }
 
     fn string(&self, key: &str) -> &'_ Option<Spanned<String>> {
-        let v = self.table.get_ref();
-        match key {
-            "output" => &v.output,
-            "colormap" => &v.colormap,
-            "material" => &v.material,
-            "shading" => &v.shading,
-            "gradient" => &v.gradient,
-            "transfer" => &v.transfer,
-            _ => unreachable!("`{key}` is not a string key of [[render]]"),
-        }
+        string_key(self.table.get_ref(), key)
+            .unwrap_or_else(|| unreachable!("`{key}` is not a string key of [[render]]"))
     }
 
     /// Where `key` is written (the pass's table where it is absent).
     fn span(&self, key: &str) -> Range<usize> {
         let v = self.table.get_ref();
-        let at = match key {
-            "preintegrated" => v.preintegrated.as_ref().map(|s| s.span()),
-            "jitter" => v.jitter.as_ref().map(|s| s.span()),
-            "window" => v.window.as_ref().map(|s| s.span()),
-            "integration" => v.integration.as_ref().map(|s| s.span()),
-            "output" | "colormap" | "material" | "shading" | "gradient" | "transfer" => {
-                self.string(key).as_ref().map(|s| s.span())
-            }
+        let at = match (string_key(v, key), bool_key(v, key)) {
+            (Some(s), _) => s.as_ref().map(|s| s.span()),
+            (_, Some(b)) => b.as_ref().map(|b| b.span()),
             _ => self.numeric(key).as_ref().map(|s| s.span()),
         };
         at.unwrap_or_else(|| self.table.span())
@@ -480,11 +429,14 @@ impl Keys for PassKeys<'_, '_, '_> {
     }
 
     fn flag(&self, key: &str) -> bool {
-        flag(self.table.get_ref(), key)
+        bool_key(self.table.get_ref(), key)
+            .is_some_and(|b| b.as_ref().is_some_and(|b| *b.get_ref()))
     }
 
     fn text(&self, key: &str) -> Option<&str> {
-        text(self.table.get_ref(), key)
+        string_key(self.table.get_ref(), key)?
+            .as_ref()
+            .map(|s| s.get_ref().as_str())
     }
 
     fn colormap(&self) -> transfer::Colormap {
