@@ -18,7 +18,7 @@ pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
     text.push('\n');
     if opts.resume {
         let total = plan.frame_list.len() * scene.passes.len();
-        text += &match volcast::pipeline::completed_images(&scene, &header, &plan)
+        text += &match volcast::pipeline::completed_images(&plan)
             .with_context(context)?
         {
             Some(done) => format!(

@@ -25,7 +25,7 @@ pub fn run(a: HistogramArgs) -> anyhow::Result<ExitCode> {
     let volume = source.load(&Limits::default())?;
     let name = file_name(&volume.header.source);
     let norm = match &scene {
-        Some(s) => volcast::pipeline::value_window(s, &volume)?,
+        Some(s) => volcast::pipeline::value_window(&s.volume, &s.path, &volume)?,
         None => volcast::pipeline::data_window(&volume)
             .ok_or_else(|| anyhow!("the volume {name} has no finite values to count"))?,
     };

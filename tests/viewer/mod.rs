@@ -510,7 +510,11 @@ fn in_chromium_a_page_of_3000_frames_stays_responsive() {
             }
         })
         .collect();
-    let data = volcast::output::viewer::page_data(&scene, (16, 16), &records);
+    let data = volcast::output::viewer::page_data(
+        &volcast::output::Outputs::of_scene(&scene),
+        (16, 16),
+        &records,
+    );
     std::fs::write(d.join("index.html"), volcast::output::viewer::page(&data)).unwrap();
 
     let b = Browser::start(&chromium, &driver, 640, 480);

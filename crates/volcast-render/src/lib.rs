@@ -6,7 +6,9 @@
 //! scene file --scene::load-------------> Scene (parsed, validated, paths absolute)
 //!            --VolumeSource::header----> VolumeHeader (sizes, type, geometry; no voxels)
 //!            --plan::Plan::build-------> Plan (views x passes, precomputations, memory;
-//!                                        each pass's mode::Mode plans its RayMode)
+//!                                        each pass's mode::Mode plans its RayMode; the
+//!                                        outputs and the scene's record: the Scene is
+//!                                        not read after this)
 //!            --VolumeSource::load------> Volume (native type, limits checked first)
 //!            --pipeline (fit)----------> Plan with the zoom of `zoom = "fit"`
 //!            --RenderPass::prepare-----> a RenderView per pass (tables, grids, gradients)

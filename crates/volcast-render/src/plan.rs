@@ -22,11 +22,15 @@ use std::ops::Range;
 
 use crate::error::Error;
 use crate::mode::{Mode, NoteContext, PassContext};
+use crate::output::manifest::SceneRecord;
+use crate::output::Outputs;
 use crate::render::footprint::Footprint;
 use crate::render::pass::{GridSource, Sampling};
 use crate::render::{ClipPlane, ImageKind, IndexFrame, RenderPass};
 use crate::sample::{GradientMethod, PAIR_TABLE_BYTES};
-use crate::scene::{Format, Integration, Layout, LightKindSpec, OrbitPath, Scene, Units};
+use crate::scene::{
+    Format, Integration, Layout, LightKindSpec, OrbitPath, Scene, Units, VolumeSpec,
+};
 use crate::shade::{Light, LightKind};
 use crate::views::Eye;
 use crate::volume::{human_bytes, VolumeHeader};
@@ -100,8 +104,13 @@ pub struct Plan {
     pub auto_window: Vec<bool>,
     /// Per pass: its fixed grey window (`window`, normalised), if it has one.
     pub windows: Vec<Option<[f64; 2]>>,
-    /// The file format of the images.
-    pub format: Format,
+    /// What the run writes around the rendered values (formats, overlays, stereo
+    /// layout, animations, the page).
+    pub output: Outputs,
+    /// What the manifest records of the scene.
+    pub scene: SceneRecord,
+    /// Where the voxels come from, their value window and units, and the crop.
+    pub volume: VolumeSpec,
     /// The volume's box in index space and the map to it (rays are clipped to it).
     pub frame: IndexFrame,
     /// The bounding sphere of the box (what cameras frame).
@@ -138,10 +147,6 @@ pub struct Plan {
     /// The normalised value whose voxels `zoom = "fit"` frames (`None`: the scene
     /// has a zoom of its own).
     pub fit_threshold: Option<f64>,
-    /// The voxel index ranges rendered (`[volume] crop`; `None`: all).
-    pub crop: Option<[[usize; 2]; 3]>,
-    /// The scene file (for messages).
-    pub scene_file: std::path::PathBuf,
 }
 
 impl Plan {
@@ -202,7 +207,9 @@ impl Plan {
             variant_of,
             auto_window,
             windows: scene.passes.iter().map(|p| p.window).collect(),
-            format: scene.image.format,
+            output: Outputs::of_scene(scene),
+            scene: SceneRecord::new(scene, header, width, height),
+            volume: scene.volume.clone(),
             frame,
             sphere,
             preview: (width.div_ceil(4).max(8), height.div_ceil(4).max(8)),
@@ -222,8 +229,6 @@ impl Plan {
                 .max(1),
             samples_estimate: 0.0,
             fit_threshold: fit_threshold(scene),
-            crop: scene.volume.crop,
-            scene_file: scene.path.clone(),
         };
         plan.estimate(scene, header);
         Ok(plan)
@@ -458,7 +463,7 @@ impl Plan {
             format!("{}G", (want / (1u64 << 30) as f64).ceil())
         };
         Err(Error::Plan {
-            scene: self.scene_file.clone(),
+            scene: self.scene.file.clone(),
             message: format!(
                 "this run needs about {} of memory, more than the {} allowed by --max-memory:{list}\n\
                  raise the limit (e.g. --max-memory {suggest}) if the machine has the memory, or need less: \

@@ -231,6 +231,19 @@ impl Views {
         )
     }
 
+    /// The azimuth and elevation (degrees) of frame `k`'s camera, before any eye's
+    /// turn: what labels and NRRD files name the frame by (the same values as
+    /// `Scene::camera_at`, not reduced by the orbit's period).
+    pub fn frame_angles_deg(&self, k: usize) -> (f64, f64) {
+        match &self.cameras {
+            Some(c) => (c[k].azimuth_deg, c[k].elevation_deg),
+            None => (
+                self.camera.azimuth_deg + self.orbit_offset_deg(k as i64),
+                self.camera.elevation_deg,
+            ),
+        }
+    }
+
     /// The camera pose and image plane of a view.
     pub fn view(&self, key: ViewKey, width: usize, height: usize, sphere: (DVec3, f64)) -> View {
         let view = View::new(

@@ -18,10 +18,10 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
-use super::frame_path;
 use super::write::write_atomic_with;
+use super::{frame_path, Outputs};
 use crate::error::Error;
-use crate::scene::{Animation, AnimationFormat, Layout, Scene};
+use crate::scene::{Animation, AnimationFormat};
 use crate::views::Eye;
 
 /// One image sequence of a run: a pass and, for the `pair` layout, an eye.
@@ -47,24 +47,6 @@ impl Sequence {
     pub fn animation_path(&self, out: &Path, format: AnimationFormat) -> PathBuf {
         out.join(format!("{}.{}", self.stem(), format.extension()))
     }
-}
-
-/// The image sequences a scene writes.
-pub fn sequences(scene: &Scene) -> Vec<Sequence> {
-    let eyes: &[Eye] = match scene.stereo {
-        Some(s) if s.layout == Layout::Pair => &[Eye::Left, Eye::Right],
-        _ => &[Eye::Mono],
-    };
-    scene
-        .passes
-        .iter()
-        .flat_map(|p| {
-            eyes.iter().map(|&eye| Sequence {
-                pass: p.name.clone(),
-                eye,
-            })
-        })
-        .collect()
 }
 
 /// GIF frame delay in hundredths of a second.
@@ -101,11 +83,12 @@ pub struct Written {
     pub frames_sha256: Option<String>,
 }
 
-/// Writes every animation of `scene` into `out` from the frame files there.
-pub fn assemble(out: &Path, scene: &Scene, anim: &Animation) -> Result<Vec<Written>, Error> {
+/// Writes every animation of `outputs` (as `anim` says) into `out` from the frame
+/// files there.
+pub fn assemble(out: &Path, outputs: &Outputs, anim: &Animation) -> Result<Vec<Written>, Error> {
     let mut written = Vec::new();
-    for seq in sequences(scene) {
-        let frames: Vec<PathBuf> = (0..scene.orbit.frames)
+    for seq in outputs.sequences() {
+        let frames: Vec<PathBuf> = (0..outputs.frames)
             .map(|k| frame_path(out, &seq.pass, k, seq.eye, "png"))
             .collect();
         for &format in &anim.formats {

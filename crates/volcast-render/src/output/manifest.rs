@@ -710,10 +710,39 @@ impl ManifestStatus {
     }
 }
 
+/// What the manifest records of the scene, fixed when it is planned: its file, its
+/// text, its resolved form and its [`scene_digest`].
+#[derive(Clone, Debug)]
+pub struct SceneRecord {
+    /// The scene file.
+    pub file: PathBuf,
+    /// The scene file's text as read.
+    pub text: String,
+    /// [`resolved_scene`].
+    pub resolved: Value,
+    /// [`scene_digest`] for the volume and image size planned.
+    pub digest: String,
+}
+
+impl SceneRecord {
+    /// The record of `scene` rendered from a volume described by `header` at
+    /// `width` x `height`.
+    pub fn new(scene: &Scene, header: &VolumeHeader, width: usize, height: usize) -> SceneRecord {
+        SceneRecord {
+            file: scene.path.clone(),
+            text: scene.text.clone(),
+            resolved: resolved_scene(scene),
+            digest: scene_digest(scene, header, width, height),
+        }
+    }
+}
+
 /// Everything the merged manifest says besides the records.
 pub struct ManifestHead<'a> {
     /// The scene.
-    pub scene: &'a Scene,
+    pub scene: &'a SceneRecord,
+    /// The run's outputs: the passes and frames whose records are merged.
+    pub outputs: &'a super::Outputs,
     /// Its volume's header.
     pub header: &'a VolumeHeader,
     /// Its voxel data's identity.
@@ -765,9 +794,9 @@ pub fn write_manifest(
             "images_done": status.done,
             "images_total": status.total,
             "scene": {
-                "file": scene.path,
+                "file": scene.file,
                 "text": scene.text,
-                "resolved": resolved_scene(scene),
+                "resolved": scene.resolved,
             },
             "render_size": [head.size.0, head.size.1],
             "volume": volume_json(head.header, head.identity),
@@ -835,16 +864,16 @@ pub fn read_manifest(out: &Path) -> Result<Option<Value>, Error> {
 
 /// The valid records of the current scene, in (pass, frame) order.
 fn collect(out: &Path, head: &ManifestHead) -> Result<(Vec<FrameRecord>, ManifestStatus), Error> {
-    let scene = head.scene;
+    let outputs = head.outputs;
     let mut status = ManifestStatus {
         path: out.join(MANIFEST),
-        total: scene.passes.len() * scene.orbit.frames,
+        total: outputs.passes.len() * outputs.frames,
         ..Default::default()
     };
-    let keys: Vec<(&str, usize)> = scene
+    let keys: Vec<(&str, usize)> = outputs
         .passes
         .iter()
-        .flat_map(|p| (0..scene.orbit.frames).map(move |k| (p.name.as_str(), k)))
+        .flat_map(|p| (0..outputs.frames).map(move |k| (p.name.as_str(), k)))
         .collect();
     // every file of every record is checked (hashed, unless `known` has it): in parallel
     let found: Vec<Result<Option<FrameRecord>, Error>> = {

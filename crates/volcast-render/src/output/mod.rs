@@ -20,10 +20,104 @@ pub use write::write_atomic;
 
 use std::path::{Path, PathBuf};
 
+use crate::label::Label;
 use crate::render::Film;
 use crate::scene::{
-    Anaglyph, AnaglyphColors, AnimationFormat, Format, Layout, Scene, Separation, StereoMethod,
+    Anaglyph, AnaglyphColors, Animation, AnimationFormat, Format, Layout, Scene, Separation,
+    Stereo, StereoMethod, Units,
 };
+use crate::transfer::Colormap;
+
+/// What a run writes around the rendered values, fixed when the scene is planned:
+/// the files' form, what is drawn over them, and the sequences, animations and page
+/// made from them. Everything after planning reads this, not the scene.
+#[derive(Clone, Debug)]
+pub struct Outputs {
+    /// The scene's name (`{scene}`: the page's title, label text).
+    pub title: String,
+    /// Per pass, in order.
+    pub passes: Vec<PassOutput>,
+    /// Frames of the whole orbit.
+    pub frames: usize,
+    /// Degrees the orbit turns.
+    pub degrees: f64,
+    /// The image files' format.
+    pub format: Format,
+    /// Colour where rays miss (linear RGB in [0, 1]).
+    pub background: [f32; 3],
+    /// Draw a scale bar into PNG frames of orthographic views.
+    pub scale_bar: bool,
+    /// Draw a colour bar of the window into PNG frames of intensity passes.
+    pub colorbar: bool,
+    /// How stereo frames are stored, when the scene has them.
+    pub stereo: Option<Stereo>,
+    /// Text drawn into PNG frames, in file order.
+    pub labels: Vec<Label>,
+    /// The units the scene's values are shown in (colour bars).
+    pub units: Units,
+    /// Animated files to assemble once the sequence is complete.
+    pub animation: Option<Animation>,
+}
+
+/// What the outputs need of one pass.
+#[derive(Clone, Debug)]
+pub struct PassOutput {
+    /// File name prefix.
+    pub name: String,
+    /// The mode's name (recorded in NRRD files and the page).
+    pub mode: &'static str,
+    /// Colour map of an intensity pass's grey values, if any.
+    pub colormap: Option<Colormap>,
+    /// Whether the pass's window is on the volume's value axis (shown in data units).
+    pub window_in_values: bool,
+}
+
+impl Outputs {
+    /// The outputs `scene` asks for.
+    pub fn of_scene(scene: &Scene) -> Outputs {
+        Outputs {
+            title: scene.name.clone(),
+            passes: scene
+                .passes
+                .iter()
+                .map(|p| PassOutput {
+                    name: p.name.clone(),
+                    mode: p.mode.name(),
+                    colormap: p.colormap,
+                    window_in_values: p.mode.window_in_values(),
+                })
+                .collect(),
+            frames: scene.orbit.frames,
+            degrees: scene.orbit.degrees,
+            format: scene.image.format,
+            background: scene.image.background,
+            scale_bar: scene.image.scale_bar,
+            colorbar: scene.image.colorbar,
+            stereo: scene.stereo,
+            labels: scene.labels.clone(),
+            units: scene.volume.units,
+            animation: scene.animation.clone(),
+        }
+    }
+
+    /// The image sequences the run writes: one per pass and, for the `pair` layout,
+    /// per eye.
+    pub fn sequences(&self) -> Vec<animation::Sequence> {
+        let eyes: &[Eye] = match self.stereo {
+            Some(s) if s.layout == Layout::Pair => &[Eye::Left, Eye::Right],
+            _ => &[Eye::Mono],
+        };
+        self.passes
+            .iter()
+            .flat_map(|p| {
+                eyes.iter().map(|&eye| animation::Sequence {
+                    pass: p.name.clone(),
+                    eye,
+                })
+            })
+            .collect()
+    }
+}
 
 /// An image buffer that could not be allocated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
@@ -117,7 +211,7 @@ pub fn describe_outputs(scene: &Scene, out: &Path, viewer: bool) -> String {
         out.join(manifest::MANIFEST).display(),
         out.join(manifest::RECORDS).display()
     );
-    let seqs = animation::sequences(scene);
+    let seqs = Outputs::of_scene(scene).sequences();
     if let Some(a) = &scene.animation {
         let files: Vec<String> = seqs
             .iter()

@@ -15,8 +15,9 @@ use serde_json::{json, Value};
 
 use super::manifest::FrameRecord;
 use super::write::Folder;
+use super::Outputs;
 use crate::error::Error;
-use crate::scene::{Layout, Scene};
+use crate::scene::Layout;
 
 /// File name of the page in the output folder.
 pub const PAGE: &str = "index.html";
@@ -35,8 +36,8 @@ fn source(file: usize, x: usize) -> Value {
 
 /// The views a frame's files hold, by name (`mono`, `left`, `right`, `anaglyph`),
 /// and how many files a frame has.
-fn sources(scene: &Scene, width: usize) -> (Value, usize) {
-    let Some(st) = scene.stereo else {
+fn sources(outputs: &Outputs, width: usize) -> (Value, usize) {
+    let Some(st) = outputs.stereo else {
         return (json!({ "mono": source(0, 0) }), 1);
     };
     match st.layout {
@@ -53,14 +54,14 @@ fn sources(scene: &Scene, width: usize) -> (Value, usize) {
     }
 }
 
-/// The data the page shows, from the scene and the records of its frames (in any
+/// The data the page shows, from the run's outputs and the records of its frames (in any
 /// order; a (pass, frame) without a record, or whose record does not have the
 /// files the layout writes, is `null`: the page shows it as missing). `size` is the
 /// image size of one view.
-pub fn page_data(scene: &Scene, size: (usize, usize), records: &[FrameRecord]) -> Value {
-    let (eyes, files_per_frame) = sources(scene, size.0);
-    let frames = scene.orbit.frames;
-    let passes: Vec<Value> = scene
+pub fn page_data(outputs: &Outputs, size: (usize, usize), records: &[FrameRecord]) -> Value {
+    let (eyes, files_per_frame) = sources(outputs, size.0);
+    let frames = outputs.frames;
+    let passes: Vec<Value> = outputs
         .passes
         .iter()
         .map(|p| {
@@ -77,26 +78,26 @@ pub fn page_data(scene: &Scene, size: (usize, usize), records: &[FrameRecord]) -
                     });
                 }
             }
-            json!({ "name": p.name, "mode": p.mode.name(), "frames": list })
+            json!({ "name": p.name, "mode": p.mode, "frames": list })
         })
         .collect();
-    let layout = scene.stereo.map(|s| match s.layout {
+    let layout = outputs.stereo.map(|s| match s.layout {
         Layout::Pair => "pair",
         Layout::SideBySide => "side-by-side",
         Layout::CrossEyed => "cross-eyed",
         Layout::Anaglyph => "anaglyph",
     });
     json!({
-        "title": scene.name,
+        "title": outputs.title,
         "frames": frames,
-        "degrees": scene.orbit.degrees,
+        "degrees": outputs.degrees,
         // a drag to the right moves the object's near side to the right: towards
         // lower azimuths, so lower frames when the orbit turns the positive way
-        "grab": if scene.orbit.degrees >= 0.0 { -1 } else { 1 },
-        "fps": scene.animation.as_ref().map_or(24.0, |a| a.fps),
+        "grab": if outputs.degrees >= 0.0 { -1 } else { 1 },
+        "fps": outputs.animation.as_ref().map_or(24.0, |a| a.fps),
         "width": size.0,
         "height": size.1,
-        "gap": scene.stereo.map_or(0, |s| s.gap),
+        "gap": outputs.stereo.map_or(0, |s| s.gap),
         "layout": layout,
         "eyes": eyes,
         "passes": passes,
@@ -132,11 +133,11 @@ pub fn page(data: &Value) -> String {
 pub fn write_page(
     folder: &Folder,
     out: &Path,
-    scene: &Scene,
+    outputs: &Outputs,
     size: (usize, usize),
     records: &[FrameRecord],
 ) -> Result<PathBuf, Error> {
-    let html = page(&page_data(scene, size, records));
+    let html = page(&page_data(outputs, size, records));
     super::manifest::write_unlinked(folder, out, PAGE, html.as_bytes())?;
     Ok(out.join(PAGE))
 }
@@ -146,15 +147,16 @@ mod tests {
     use super::*;
     use crate::output::manifest::{FileRecord, ViewRecord};
 
-    /// A scene of two passes and 4 frames (`orbit` adds to the `[orbit]` table).
-    fn scene_of(orbit: &str, extra: &str) -> Scene {
+    /// The outputs of a scene of two passes and 4 frames (`orbit` adds to the
+    /// `[orbit]` table).
+    fn scene_of(orbit: &str, extra: &str) -> Outputs {
         let text = format!(
             "[volume]\nsynthetic = \"ball\"\nsizes = [4, 4, 4]\n[orbit]\nframes = 4\n{orbit}[image]\nsize = [10, 8]\n[[render]]\nmode = \"mip\"\n[[render]]\nname = \"iso\"\nmode = \"surface\"\n{extra}"
         );
-        crate::scene::parse(&text, Path::new("/tmp/spin.toml")).unwrap()
+        Outputs::of_scene(&crate::scene::parse(&text, Path::new("/tmp/spin.toml")).unwrap())
     }
 
-    fn scene(extra: &str) -> Scene {
+    fn scene(extra: &str) -> Outputs {
         scene_of("", extra)
     }
 

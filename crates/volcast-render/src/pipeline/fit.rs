@@ -32,7 +32,7 @@ pub(super) fn fit(plan: &Plan, volume: &Volume, norm: Normalize) -> Result<Optio
     };
     let Some(z) = zoom(plan, t, volume, norm) else {
         return Err(Error::Plan {
-            scene: plan.scene_file.clone(),
+            scene: plan.scene.file.clone(),
             message: format!(
                 "[camera] zoom = \"fit\": no voxel of {} is at or above the fit threshold {t} (normalised): set `fit_threshold` lower, or give `zoom` a number",
                 volume.header.source
@@ -51,7 +51,10 @@ pub(super) fn fit(plan: &Plan, volume: &Volume, norm: Normalize) -> Result<Optio
 /// voxel reaches it.
 fn zoom(plan: &Plan, t: f64, volume: &Volume, norm: Normalize) -> Option<f64> {
     let [nx, ny, nz] = volume.header.sizes;
-    let crop = plan.crop.unwrap_or([[0, nx - 1], [0, ny - 1], [0, nz - 1]]);
+    let crop = plan
+        .volume
+        .crop
+        .unwrap_or([[0, nx - 1], [0, ny - 1], [0, nz - 1]]);
     // voxels at zero threshold: strictly above the window's low end
     let hit = |v: f32| if t > 0.0 { f64::from(v) >= t } else { v > 0.0 };
     let boxes = (crop[2][0]..=crop[2][1])

@@ -14,7 +14,7 @@ use crate::output::display::Window;
 use crate::plan::Plan;
 use crate::render::{Film, ImageKind, RenderView, Resources, View};
 use crate::sample::Normalize;
-use crate::scene::{Format, Scene};
+use crate::scene::Format;
 use crate::views::Eye;
 use crate::views::{frames_per_batch, ViewKey};
 use crate::volume::Volume;
@@ -25,13 +25,11 @@ type Runtimes<'a> = HashMap<usize, Box<dyn RenderView + 'a>>;
 /// The files written for each (pass, frame).
 type Written = Vec<((usize, usize), Vec<PathBuf>)>;
 
-/// Renders the frames `jobs` ((pass, frame) pairs, in order) of `scene`, as
-/// `plan` says (its zoom already fitted to the voxels where the scene asks), and
-/// hands each to `emit`'s sink: the grey windows found ([`grey_windows`]),
-/// then the frames in batches ([`Schedule`]), each batch's distinct views
+/// Renders the frames `jobs` ((pass, frame) pairs, in order) as `plan` says (its
+/// zoom already fitted to the voxels where the scene asks), and hands each to
+/// `emit`'s sink: the grey windows found ([`grey_windows`]), then the frames in batches ([`Schedule`]), each batch's distinct views
 /// rendered on the workers while a thread of its own writes the batch before.
 pub(super) fn render_passes(
-    scene: &Scene,
     plan: &Plan,
     volume: &Volume,
     norm: Normalize,
@@ -49,7 +47,7 @@ pub(super) fn render_passes(
             .geometry
             .index_from_world_matrix()
             .ok_or_else(|| Error::Plan {
-                scene: scene.path.clone(),
+                scene: plan.scene.file.clone(),
                 message: format!("the volume {} has degenerate axes", header.source),
             })?;
     let frame = plan.frame;
@@ -58,7 +56,7 @@ pub(super) fn render_passes(
         header.sizes,
         norm,
         // without a window, the run's is the data's range (`value_window`)
-        scene.volume.window.is_none(),
+        plan.volume.window.is_none(),
         index_from_world,
         &plan.passes,
     );
@@ -220,7 +218,7 @@ fn grey_windows(plan: &Plan, resources: &Resources) -> Vec<Option<Window>> {
         .zip(&plan.auto_window)
         .enumerate()
         .map(|(p, ((window, rp), &auto))| {
-            if rp.kind() == ImageKind::Rgba || plan.format == Format::Nrrd {
+            if rp.kind() == ImageKind::Rgba || plan.output.format == Format::Nrrd {
                 None
             } else if let Some([lo, hi]) = *window {
                 Some(Window { lo, hi })

@@ -108,7 +108,8 @@ pub fn render(
 }
 
 /// The stages of a run, as pbrt's `RenderCPU` reads: check everything that can be
-/// checked without voxels, find what is already done, render what remains, finish.
+/// checked without voxels (the plan, after which the scene is not read again), find
+/// what is already done, render what remains, finish.
 fn render_run(
     scene: &Scene,
     opts: &RunOptions,
@@ -117,9 +118,23 @@ fn render_run(
 ) -> Result<Summary, Error> {
     let start = Instant::now();
     let (_scope, header, plan) = preflight(scene, opts, limits)?;
+    let mut summary = run_plan(&plan, &header, opts, limits, progress)?;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// A planned run: what is done, the rest rendered, the manifest merged, the
+/// animations and the page made.
+fn run_plan(
+    plan: &Plan,
+    header: &VolumeHeader,
+    opts: &RunOptions,
+    limits: &Limits,
+    progress: &dyn Progress,
+) -> Result<Summary, Error> {
     if opts.finish_only && !plan.out.is_dir() {
         return Err(Error::Plan {
-            scene: scene.path.clone(),
+            scene: plan.scene.file.clone(),
             message: format!(
                 "--finish-only: the output folder {} does not exist: nothing has been rendered there yet",
                 plan.out.display()
@@ -127,8 +142,8 @@ fn render_run(
         });
     }
     let mut notes = Vec::new();
-    let mut known = Known::find(scene, &header, &plan, opts, limits, &mut notes)?;
-    let jobs = jobs(&plan, &known.done);
+    let mut known = Known::find(plan, opts, limits, &mut notes)?;
+    let jobs = jobs(plan, &known.done);
     if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
         notes.push(format!(
             "shard {shard} has no frames of {}..{}: nothing to render",
@@ -137,10 +152,10 @@ fn render_run(
     }
     let mut summary = match known.volume.take() {
         _ if jobs.is_empty() => Summary::default(),
-        Some(volume) => render_jobs(scene, &plan, &volume, &jobs, &known.digest, progress)?,
+        Some(volume) => render_jobs(plan, &volume, &jobs, &known.digest, progress)?,
         None => {
-            let volume = scene.volume.source.load(limits)?;
-            render_jobs(scene, &plan, &volume, &jobs, &known.digest, progress)?
+            let volume = plan.volume.source.load(limits)?;
+            render_jobs(plan, &volume, &jobs, &known.digest, progress)?
         }
     };
     summary.skipped = if opts.finish_only {
@@ -150,15 +165,7 @@ fn render_run(
     };
     notes.append(&mut summary.notes);
     summary.notes = notes;
-    finish(
-        scene,
-        &plan,
-        &header,
-        &known.identity,
-        &known.digest,
-        &mut summary,
-    )?;
-    summary.seconds = start.elapsed().as_secs_f64();
+    finish(plan, header, &known.identity, &known.digest, &mut summary)?;
     Ok(summary)
 }
 
@@ -178,14 +185,12 @@ impl Known {
     /// voxels (`--resume`); with `--finish-only` every image counts as done, and the
     /// manifest says which exist.
     fn find(
-        scene: &Scene,
-        header: &crate::volume::VolumeHeader,
         plan: &Plan,
         opts: &RunOptions,
         limits: &Limits,
         notes: &mut Vec<String>,
     ) -> Result<Known, Error> {
-        let layout = manifest::scene_digest(scene, header, plan.width, plan.height);
+        let layout = &plan.scene.digest;
         let previous = manifest::read_manifest(&plan.out)?;
         if let Some(f) = previous.as_ref().and_then(manifest::manifest_format) {
             if f != manifest::MANIFEST_FORMAT && opts.resume {
@@ -200,7 +205,7 @@ impl Known {
                 Ok(plan
                     .frame_list
                     .iter()
-                    .flat_map(|&k| (0..scene.passes.len()).map(move |p| (p, k)))
+                    .flat_map(|&k| (0..plan.passes.len()).map(move |p| (p, k)))
                     .collect())
             } else if opts.resume {
                 completed(plan, digest)
@@ -211,7 +216,7 @@ impl Known {
         // the volume as read, and what is done for its voxels
         let known =
             |volume: Volume, identity: crate::volume::VolumeIdentity| -> Result<Known, Error> {
-                let digest = manifest::data_digest(&layout, identity.data_xxh3.as_deref());
+                let digest = manifest::data_digest(layout, identity.data_xxh3.as_deref());
                 let done = done_for(&digest)?;
                 Ok(Known {
                     identity,
@@ -220,11 +225,12 @@ impl Known {
                     volume: Some(volume),
                 })
             };
-        let Some(recorded) = resume::trusted_identity(scene, previous.as_ref())? else {
-            let (volume, identity) = scene.volume.source.load_identified(limits)?;
+        let source = &plan.volume.source;
+        let Some(recorded) = resume::trusted_identity(plan, previous.as_ref())? else {
+            let (volume, identity) = source.load_identified(limits)?;
             return known(volume, identity);
         };
-        let digest = manifest::data_digest(&layout, recorded.data_xxh3.as_deref());
+        let digest = manifest::data_digest(layout, recorded.data_xxh3.as_deref());
         let done = done_for(&digest)?;
         if jobs(plan, &done).is_empty() {
             return Ok(Known {
@@ -236,7 +242,7 @@ impl Known {
         }
         // something is left to render: read the voxels, and if they are not the
         // recorded ones, find what is done for the voxels there are
-        let (volume, now) = scene.volume.source.load_identified(limits)?;
+        let (volume, now) = source.load_identified(limits)?;
         if now.data_xxh3 == recorded.data_xxh3 {
             return Ok(Known {
                 identity: now,
@@ -253,25 +259,24 @@ impl Known {
 /// its manifest record: the value window, the zoom fitted where the scene asks
 /// (the plan the frames then render), then the frames.
 fn render_jobs(
-    scene: &Scene,
     plan: &Plan,
     volume: &Volume,
     jobs: &[(usize, usize)],
     digest: &str,
     progress: &dyn Progress,
 ) -> Result<Summary, Error> {
-    let norm = value_window(scene, volume)?;
+    let norm = value_window(&plan.volume, &plan.scene.file, volume)?;
     let fitted = fit::fit(plan, volume, norm)?;
     let plan = fitted.as_ref().map_or(plan, |f| &f.plan);
     let shard = plan.shard.map(|s| s.to_string());
     let prepare = || create_folders(&plan.out);
     let sink = |fv: &FrameViews| -> Result<Vec<PathBuf>, Error> {
         let t0 = Instant::now();
-        let files = write_frame(scene, plan, fv)?;
+        let files = write_frame(plan, fv)?;
         let record = FrameRecord {
             scene_hash: digest.to_string(),
             volcast_version: env!("CARGO_PKG_VERSION").into(),
-            pass: scene.passes[fv.pass].name.clone(),
+            pass: plan.passes[fv.pass].name.clone(),
             frame: fv.frame,
             views: fv
                 .eyes
@@ -295,7 +300,7 @@ fn render_jobs(
         prepare: &prepare,
         sink: &sink,
     };
-    let mut summary = render_passes(scene, plan, volume, norm, jobs, &emit)?;
+    let mut summary = render_passes(plan, volume, norm, jobs, &emit)?;
     summary.notes.extend(fitted.map(|f| f.note));
     Ok(summary)
 }
@@ -353,10 +358,10 @@ pub fn render_films(
     opts: &RunOptions,
     limits: &Limits,
 ) -> Result<(Vec<RenderedView>, Summary), Error> {
-    let (_scope, _, _) = preflight(scene, opts, limits)?;
+    let (_scope, _, plan) = preflight(scene, opts, limits)?;
     let start = Instant::now();
-    let volume = scene.volume.source.load(limits)?;
-    let (views, mut summary) = render_films_of(scene, &volume, opts)?;
+    let volume = plan.volume.source.load(limits)?;
+    let (views, mut summary) = films_of_plan(&plan, &volume)?;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok((views, summary))
 }
@@ -371,9 +376,16 @@ pub fn render_films_of(
 ) -> Result<(Vec<RenderedView>, Summary), Error> {
     let start = Instant::now();
     let plan = Plan::build(scene, &volume.header, opts)?;
-    let norm = value_window(scene, volume)?;
-    let fitted = fit::fit(&plan, volume, norm)?;
-    let plan = fitted.as_ref().map_or(&plan, |f| &f.plan);
+    let (views, mut summary) = films_of_plan(&plan, volume)?;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok((views, summary))
+}
+
+/// The films of every (pass, frame) of `plan`, rendered from `volume`.
+fn films_of_plan(plan: &Plan, volume: &Volume) -> Result<(Vec<RenderedView>, Summary), Error> {
+    let norm = value_window(&plan.volume, &plan.scene.file, volume)?;
+    let fitted = fit::fit(plan, volume, norm)?;
+    let plan = fitted.as_ref().map_or(plan, |f| &f.plan);
     let collected = std::sync::Mutex::new(Vec::new());
     let sink = |fv: &FrameViews| {
         let mut c = collected.lock().expect("no panics while holding the lock");
@@ -393,9 +405,8 @@ pub fn render_films_of(
         prepare: &|| Ok(()),
         sink: &sink,
     };
-    let mut summary = render_passes(scene, plan, volume, norm, &jobs, &emit)?;
+    let mut summary = render_passes(plan, volume, norm, &jobs, &emit)?;
     summary.notes.extend(fitted.map(|f| f.note));
-    summary.seconds = start.elapsed().as_secs_f64();
     let mut views = collected
         .into_inner()
         .expect("no panics while holding the lock");

@@ -1,22 +1,25 @@
 //! The value normalisation of a run: the scene's window, or the data's range.
 
+use std::path::Path;
+
 use crate::error::Error;
 use crate::output::display::Window;
 use crate::sample::Normalize;
-use crate::scene::Scene;
+use crate::scene::VolumeSpec;
 use crate::volume::{Stats, Volume};
 
-/// The normalisation of the scene's value window, or of the data's finite range.
-/// Both are in the volume's physical values (its [`Rescale`](crate::volume::Rescale)
-/// folded in: the voxels keep their stored values, the window is mapped to them).
-pub fn value_window(scene: &Scene, volume: &Volume) -> Result<Normalize, Error> {
+/// The normalisation of the value window of `spec` (the `[volume]` of the scene
+/// file `scene`), or of the data's finite range. Both are in the volume's physical
+/// values (its [`Rescale`](crate::volume::Rescale) folded in: the voxels keep their
+/// stored values, the window is mapped to them).
+pub fn value_window(spec: &VolumeSpec, scene: &Path, volume: &Volume) -> Result<Normalize, Error> {
     let rescale = volume.header.rescale;
-    if let Some(window) = scene.volume.window {
+    if let Some(window) = spec.window {
         let [lo, hi] = rescale.stored_window(window);
         return Ok(Normalize::new(lo, hi));
     }
     data_window(volume).ok_or_else(|| Error::Plan {
-        scene: scene.path.clone(),
+        scene: scene.to_path_buf(),
         message: format!(
             "the volume {} has no finite values to take a window from",
             volume.header.source

@@ -11,39 +11,33 @@ use serde_json::json;
 use super::Summary;
 use crate::error::Error;
 use crate::output::manifest::{self, FrameRecord, ManifestHead, ManifestStatus};
-use crate::output::{animation, frame_path, viewer};
+use crate::output::{animation, frame_path, viewer, Outputs};
 use crate::plan::Plan;
-use crate::scene::{Format, Scene};
+use crate::scene::Format;
 use crate::volume::{VolumeHeader, VolumeIdentity};
 
 /// How many (pass, frame) images of the plan's frames `--resume` would skip, when
 /// that can be told without reading the voxels: `None` when the volume's files
 /// changed since the output folder's manifest recorded them (or it recorded none),
 /// since only hashing the data can then tell which images still belong to it.
-pub fn completed_images(
-    scene: &Scene,
-    header: &VolumeHeader,
-    plan: &Plan,
-) -> Result<Option<usize>, Error> {
+pub fn completed_images(plan: &Plan) -> Result<Option<usize>, Error> {
     let previous = manifest::read_manifest(&plan.out)?;
-    let Some(identity) = trusted_identity(scene, previous.as_ref())? else {
+    let Some(identity) = trusted_identity(plan, previous.as_ref())? else {
         return Ok(None);
     };
-    let digest = manifest::data_digest(
-        &manifest::scene_digest(scene, header, plan.width, plan.height),
-        identity.data_xxh3.as_deref(),
-    );
+    let digest = manifest::data_digest(&plan.scene.digest, identity.data_xxh3.as_deref());
     Ok(Some(completed(plan, &digest)?.len()))
 }
 
 /// The identity of the voxels when it is known without reading them: a synthetic
 /// field's (its scene defines it), or the one `manifest.json` recorded if every file
-/// of the volume still has the recorded size and modification time.
+/// of the plan's volume still has the recorded size and modification time.
 pub(super) fn trusted_identity(
-    scene: &Scene,
+    plan: &Plan,
     previous: Option<&serde_json::Value>,
 ) -> Result<Option<VolumeIdentity>, Error> {
-    if scene.volume.source.is_synthetic() {
+    let source = &plan.volume.source;
+    if source.is_synthetic() {
         return Ok(Some(VolumeIdentity {
             data_xxh3: None,
             files: Vec::new(),
@@ -52,7 +46,7 @@ pub(super) fn trusted_identity(
     let Some(recorded) = previous.and_then(manifest::recorded_identity) else {
         return Ok(None);
     };
-    let now = scene.volume.source.stamps()?;
+    let now = source.stamps()?;
     Ok((recorded.data_xxh3.is_some() && recorded.files == now).then_some(recorded))
 }
 
@@ -131,7 +125,6 @@ pub(super) fn remove_empty_folders(folders: &[PathBuf]) {
 /// The turntable page is written from the merged records whenever the sequence is
 /// complete (it is small, and the same records give the same bytes).
 pub(super) fn finish(
-    scene: &Scene,
     plan: &Plan,
     header: &VolumeHeader,
     identity: &VolumeIdentity,
@@ -157,9 +150,10 @@ pub(super) fn finish(
             "removed {removed} temporary file(s) left by an interrupted run"
         ));
     }
-    let sequences = animation::sequences(scene);
-    let fps = scene.animation.as_ref().map_or(24.0, |a| a.fps);
-    let ffmpeg: Vec<String> = if scene.image.format == Format::Nrrd {
+    let outputs = &plan.output;
+    let sequences = outputs.sequences();
+    let fps = outputs.animation.as_ref().map_or(24.0, |a| a.fps);
+    let ffmpeg: Vec<String> = if outputs.format == Format::Nrrd {
         Vec::new()
     } else {
         sequences
@@ -168,7 +162,8 @@ pub(super) fn finish(
             .collect()
     };
     let head = ManifestHead {
-        scene,
+        scene: &plan.scene,
+        outputs,
         header,
         identity,
         digest,
@@ -181,12 +176,12 @@ pub(super) fn finish(
         let mut e = json!({ "ffmpeg": &ffmpeg });
         if plan.viewer && status.complete() {
             let size = (plan.width, plan.height);
-            page = Some(viewer::write_page(&folder, out, scene, size, records)?);
+            page = Some(viewer::write_page(&folder, out, outputs, size, records)?);
             e["viewer"] = json!(viewer::PAGE);
         }
-        if let (Some(anim), true) = (&scene.animation, status.complete()) {
+        if let (Some(anim), true) = (&outputs.animation, status.complete()) {
             let entries = animation_entries(
-                scene,
+                outputs,
                 anim,
                 out,
                 &folder,
@@ -218,7 +213,7 @@ pub(super) fn finish(
 /// file already matches such an entry of `previous` for the same settings and
 /// frames.
 fn animation_entries(
-    scene: &Scene,
+    outputs: &Outputs,
     anim: &crate::scene::Animation,
     out: &Path,
     folder: &crate::output::write::Folder,
@@ -237,8 +232,8 @@ fn animation_entries(
         .flat_map(|r| r.files.iter().map(|f| (f.name.as_str(), f.sha256.as_str())))
         .collect();
     let mut wanted: Vec<(String, crate::scene::AnimationFormat, String)> = Vec::new();
-    for q in animation::sequences(scene) {
-        let names: Vec<String> = (0..scene.orbit.frames)
+    for q in outputs.sequences() {
+        let names: Vec<String> = (0..outputs.frames)
             .map(|k| {
                 frame_path(out, &q.pass, k, q.eye, "png")
                     .file_name()
@@ -291,7 +286,7 @@ fn animation_entries(
                 }))
     });
     if !up_to_date {
-        let mut written = animation::assemble(out, scene, anim)?;
+        let mut written = animation::assemble(out, outputs, anim)?;
         for w in &mut written {
             let name = w
                 .path
@@ -314,7 +309,7 @@ fn animation_entries(
         files.push(json!({
             "file": file,
             "format": format.extension(),
-            "frames": scene.orbit.frames,
+            "frames": outputs.frames,
             "fps": match format {
                 crate::scene::AnimationFormat::Gif => 100.0 / animation::gif_delay(anim.fps) as f64,
                 crate::scene::AnimationFormat::Apng => anim.fps,

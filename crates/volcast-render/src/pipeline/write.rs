@@ -11,20 +11,20 @@ use crate::output::overlay::{self, Colorbar, Overlay, ScaleBar};
 use crate::output::{encode, frame_path, stereo};
 use crate::plan::Plan;
 use crate::render::{Film, ImageKind, View};
-use crate::scene::{AnaglyphColors, Format, Layout, Projection, Scene};
+use crate::scene::{AnaglyphColors, Format, Layout, Projection};
 use crate::views::Eye;
 
 /// Lays out, encodes and writes the images of one (pass, frame); returns each file
 /// with its manifest entry.
 pub(super) fn write_frame(
-    scene: &Scene,
     plan: &Plan,
     fv: &FrameViews,
 ) -> Result<Vec<(PathBuf, FileRecord)>, Error> {
     let (p, k, window) = (fv.pass, fv.frame, fv.window);
-    let pass = &scene.passes[p];
-    let format = scene.image.format;
-    let bg = scene.image.background;
+    let outputs = &plan.output;
+    let pass = &outputs.passes[p];
+    let format = outputs.format;
+    let bg = outputs.background;
     let display_kind = match (plan.passes[p].kind(), window) {
         (ImageKind::Depth, Some(w)) => DisplayKind::Depth(w, pass.colormap),
         (_, Some(w)) => DisplayKind::Intensity(w, pass.colormap),
@@ -39,7 +39,7 @@ pub(super) fn write_frame(
             Format::Nrrd => Ok((e.eye, std::borrow::Cow::Borrowed(e.film))),
             _ => to_display(e.film, display_kind, bg)
                 .and_then(|f| {
-                    let o = frame_overlay(scene, plan, p, k, &e.view, display_kind);
+                    let o = frame_overlay(plan, p, k, &e.view, display_kind);
                     if o.is_empty() {
                         Ok(f)
                     } else {
@@ -53,11 +53,11 @@ pub(super) fn write_frame(
                 }),
         })
         .collect::<Result<_, Error>>()?;
-    let layout = scene.stereo.map(|s| s.layout);
+    let layout = outputs.stereo.map(|s| s.layout);
     let images: Vec<(Eye, std::borrow::Cow<Film>)> = match (layout, stored.as_slice()) {
         (None, _) | (Some(Layout::Pair), _) => stored,
         (Some(l), [(_, left), (_, right)]) => {
-            let st = scene.stereo.expect("layout implies stereo");
+            let st = outputs.stereo.expect("layout implies stereo");
             let fill: Vec<f32> = match format {
                 Format::Nrrd if left.channels == 1 => vec![f32::NAN],
                 Format::Nrrd => vec![0.0; left.channels],
@@ -94,10 +94,10 @@ pub(super) fn write_frame(
                 })?
             }
             Format::Nrrd => {
-                let azimuth = scene.camera_at(k).azimuth_deg;
+                let (azimuth, _) = plan.views.frame_angles_deg(k);
                 let mut kv = vec![
                     ("volcast_pass".to_string(), pass.name.clone()),
-                    ("volcast_mode".to_string(), pass.mode.name().to_string()),
+                    ("volcast_mode".to_string(), pass.mode.to_string()),
                     ("volcast_frame".to_string(), k.to_string()),
                     ("volcast_azimuth_deg".to_string(), format!("{azimuth}")),
                 ];
@@ -128,45 +128,39 @@ pub(super) fn write_frame(
 /// What is drawn over one eye's picture of pass `p`, frame `k`: the scene's labels
 /// (placeholders from the frame's centre view, so both eyes of a stereo frame agree),
 /// the scale bar of an orthographic view, and the colour bar of an intensity pass.
-fn frame_overlay(
-    scene: &Scene,
-    plan: &Plan,
-    p: usize,
-    k: usize,
-    view: &View,
-    kind: DisplayKind,
-) -> Overlay {
-    let pass = &scene.passes[p];
+fn frame_overlay(plan: &Plan, p: usize, k: usize, view: &View, kind: DisplayKind) -> Overlay {
+    let outputs = &plan.output;
+    let pass = &outputs.passes[p];
     // the frame's camera on any path (keyframes, rock, elevation, circle)
-    let camera = scene.camera_at(k);
+    let (azimuth, elevation) = plan.views.frame_angles_deg(k);
     let info = FrameInfo {
-        scene: &scene.name,
+        scene: &outputs.title,
         pass: &pass.name,
         frame: k,
-        azimuth: camera.azimuth_deg,
-        elevation: camera.elevation_deg,
+        azimuth,
+        elevation,
     };
-    let labels = scene
+    let labels = outputs
         .labels
         .iter()
         .map(|l| (l.text_for(&info), l.clone()))
         .collect();
     let scale_bar =
-        (scene.image.scale_bar && view.projection == Projection::Orthographic).then(|| ScaleBar {
+        (outputs.scale_bar && view.projection == Projection::Orthographic).then(|| ScaleBar {
             pixel_size: 2.0 * view.half_height / plan.height as f64,
             unit: plan.length_unit.clone(),
         });
     // values of the volume under units = "data" for the passes whose window is on
     // the value axis
-    let value_based = pass.mode.window_in_values();
+    let value_based = pass.window_in_values;
     let shown = |x: f64| {
         if value_based {
-            scene.volume.units.show(x)
+            outputs.units.show(x)
         } else {
             x
         }
     };
-    let colorbar = match (scene.image.colorbar, kind) {
+    let colorbar = match (outputs.colorbar, kind) {
         (true, DisplayKind::Intensity(w, map)) => Some(Colorbar {
             map,
             top: shown(w.hi),
