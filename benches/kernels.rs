@@ -5,7 +5,9 @@
 
 use divan::{black_box, Bencher};
 use glam::{DMat3, DVec3};
-use volcast::render::integrator::{trace, Integrand, Mip, PixelRay, Xray};
+use volcast::mode::projection::Mip;
+use volcast::mode::xray::Xray;
+use volcast::render::integrator::{trace, Integrand, PixelRay};
 use volcast::render::march::March;
 use volcast::render::skip::{MacroGrid, Support};
 use volcast::render::IndexFrame;

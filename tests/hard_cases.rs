@@ -4,7 +4,11 @@
 use std::path::Path;
 
 use glam::{DMat3, DVec3};
-use volcast::render::integrator::{trace, Depth, Exact, Integrand, Minip, Mip, PixelRay, Xray};
+use volcast::mode::crossing::Depth;
+use volcast::mode::exact::Exact;
+use volcast::mode::projection::{Minip, Mip};
+use volcast::mode::xray::Xray;
+use volcast::render::integrator::{trace, Integrand, PixelRay};
 use volcast::render::IndexFrame;
 use volcast::sample::{GradientMethod, Interpolation, Normalize, Sampler};
 use volcast::scene::XrayOutput;

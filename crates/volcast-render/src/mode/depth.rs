@@ -3,9 +3,10 @@
 
 use std::sync::Arc;
 
+use super::crossing::Depth;
+use super::exact::Exact;
 use super::{Level, Mode, PassContext, Registration};
 use crate::render::frame::RenderView;
-use crate::render::integrator::{Depth, Exact};
 use crate::render::pass::{ImageKind, RayMode, RenderPass, Resources};
 
 /// `mode = "depth"`.

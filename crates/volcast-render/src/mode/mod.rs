@@ -3,7 +3,12 @@
 //!
 //! A family's module holds each of its modes whole: the scene keys it takes and
 //! their checks ([`Registration`]), its resolved settings (a type implementing
-//! [`Mode`]), and the integrators it renders with ([`RayMode`]). Everything
+//! [`Mode`]), how it renders ([`RayMode`]) and its sampled integrand
+//! (`projection::integrator`, `xray::integrator`, `composite::integrator`; depth and
+//! surface share the level-crossing search of [`crossing`]). [`exact`] is the exact
+//! integrand of every mode but composite: one walk of the trilinear interpolant's
+//! cells with a closed form per mode, one kernel per filter rather than one per
+//! mode. Everything
 //! downstream asks the [`Mode`] object (the plan, `zoom = "fit"`, the manifest, the
 //! histogram's overlays, `check`) instead of matching on the mode.
 //!
@@ -11,7 +16,9 @@
 //! implementations, its `Registration`) and one line in [`MODES`].
 
 pub mod composite;
+pub mod crossing;
 pub mod depth;
+pub mod exact;
 pub mod projection;
 pub mod surface;
 pub mod xray;

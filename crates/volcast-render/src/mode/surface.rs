@@ -3,9 +3,10 @@
 
 use std::sync::Arc;
 
+use super::crossing::Surface;
+use super::exact::Exact;
 use super::{Level, Mode, PassContext, Registration, Shading};
 use crate::render::frame::RenderView;
-use crate::render::integrator::{Exact, Surface};
 use crate::render::pass::{ImageKind, RayMode, RenderPass, Resources};
 use crate::shade::Shader;
 

@@ -254,9 +254,9 @@ mod tests {
 
     use super::*;
     use crate::mode::composite::{Composite, CompositeTable};
+    use crate::mode::projection::Average;
+    use crate::mode::xray::{Xray, XrayOutput};
     use crate::render::footprint::tests::camera;
-    use crate::render::integrator::XrayOutput;
-    use crate::render::integrator::{Average, Xray};
     use crate::render::skip::Support;
     use crate::sample::{GradientMethod, Interpolation, Normalize, Sampler};
     use crate::transfer::{Interpolation as Ramp, Transfer1D};
@@ -439,7 +439,7 @@ mod tests {
     /// rays out.
     #[test]
     fn windowed_crossings_give_every_pixel_of_the_whole_walks() {
-        use crate::render::integrator::{Depth, Surface};
+        use crate::mode::crossing::{Depth, Surface};
         use crate::render::ClipPlane;
         use crate::shade::{Light, Material, Model, Shader};
         let (n, v) = blobs(false);
@@ -493,7 +493,7 @@ mod tests {
     /// local MIP with a threshold of zero, have no windows.
     #[test]
     fn windowed_mip_and_local_mip_give_every_pixel_of_the_whole_walks() {
-        use crate::render::integrator::{Lmip, Minip, Mip};
+        use crate::mode::projection::{Lmip, Minip, Mip};
         for negative_zeros in [false, true] {
             let (n, v) = blobs(negative_zeros);
             let grid = MacroGrid::from_values(n, Support::Linear, |i| v[i]);

@@ -20,9 +20,9 @@ pub use diag::{Diagnostic, SceneError};
 pub use path::{Channel, Keyframes, OrbitPath};
 
 pub use crate::mode::projection::MipOutput;
+pub use crate::mode::xray::XrayOutput;
 pub use crate::mode::{Mode, Shading};
 pub use crate::render::camera::{Camera, Projection, ZoomFit};
-pub use crate::render::integrator::XrayOutput;
 pub use crate::transfer::Transfer;
 
 use crate::sample::Interpolation;

@@ -24,9 +24,8 @@ use std::ops::ControlFlow;
 use glam::{DVec3, Vec3, Vec4};
 
 use super::unclear::Unclear;
-use crate::render::integrator::{
-    drive, normal_from_gradient, take_each, Consumer, Counts, Integrand, PixelRay, BATCH,
-};
+use crate::mode::crossing::normal_from_gradient;
+use crate::render::integrator::{drive, take_each, Consumer, Counts, Integrand, PixelRay, BATCH};
 use crate::render::march::{March, Midpoints};
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;

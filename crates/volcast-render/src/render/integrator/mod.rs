@@ -1,27 +1,21 @@
-//! Per-ray integrators: one type per render mode, each a pure function of the field
-//! and the ray (no I/O, no locks, no allocation), generic over the field so that the
-//! inner loop is compiled once per (voxel type, filter, mode).
+//! What every per-ray integrator is built on: the [`Integrand`] interface (a pure
+//! function of the field and the ray: no I/O, no locks, no allocation, generic over
+//! the field so that the inner loop is compiled once per (voxel type, filter,
+//! mode)), the ray it is given ([`PixelRay`]), and the one sampling loop. The modes'
+//! own integrands live with their families in `crate::mode`.
 //!
 //! Sampled modes are [`Consumer`]s: the one sampling loop, [`drive`], walks the
 //! ray's macrocells (when the pass skips empty space), passes over the samples of
 //! the cells the consumer says cannot change its result, and hands it the others in
-//! order. Exact passes ([`Exact`], `exact.rs`) walk the voxel cells instead.
+//! order, [`BATCH`] at a time. Exact passes (`mode::exact`) walk the voxel cells
+//! instead; `root` is the root finder they share with the crossing searches.
 //! Formulas: docs/formulas.md "Render modes" and "Emission-absorption and compositing".
 
-mod crossing;
-mod exact;
-mod projection;
-mod root;
-mod xray;
+pub(crate) mod root;
 
 use std::ops::ControlFlow;
 
 use glam::DVec3;
-
-pub use crossing::{normal_from_gradient, Depth, Surface};
-pub use exact::Exact;
-pub use projection::{Average, CuedMip, CuedOutput, Lmip, Minip, Mip};
-pub use xray::{Xray, XrayOutput};
 
 use super::clip::Cut;
 use super::march::{Lattice, March};
@@ -373,13 +367,13 @@ impl<L: Lattice, F: Field> Runs<'_, L, F> {
 /// line, so that the vector paths' loads and stores of eight positions never
 /// straddle two lines, wherever the batch lands on the stack.
 #[repr(C, align(64))]
-struct Batch {
-    ts: [f64; BATCH],
-    values: [f32; BATCH],
-    cache: CellCache,
+pub(crate) struct Batch {
+    pub(crate) ts: [f64; BATCH],
+    pub(crate) values: [f32; BATCH],
+    pub(crate) cache: CellCache,
     /// The field's [`Field::lanes`], asked once per ray ([`Batch::for_field`]; 1,
     /// no padding, by default).
-    lanes: usize,
+    pub(crate) lanes: usize,
 }
 
 /// Samples per batch of a ray's march: enough to amortise a call into the vector path (its
@@ -411,7 +405,7 @@ impl Default for Batch {
 /// flushes end in such a tail (along an axis none do), and the test costs a view
 /// along an axis little (`bench/peers/README.md`).
 #[inline(always)]
-fn padded(ts: &mut [f64; BATCH], n: usize, lanes: usize) -> usize {
+pub(crate) fn padded(ts: &mut [f64; BATCH], n: usize, lanes: usize) -> usize {
     // a mask, not `%`: `lanes` is known at run time only, and a division per
     // batch cost more than the padding saves
     debug_assert!(lanes.is_power_of_two());
@@ -438,7 +432,7 @@ fn pad(ts: &mut [f64; BATCH], n: usize, m: usize) -> usize {
 impl Batch {
     /// A batch for samples of `field`, padded to its lanes ([`padded`]).
     #[inline(always)]
-    fn for_field<F: Field>(field: &F) -> Batch {
+    pub(crate) fn for_field<F: Field>(field: &F) -> Batch {
         Batch {
             lanes: field.lanes(),
             ..Batch::default()
@@ -449,7 +443,7 @@ impl Batch {
     /// which it stopped, if it did (a few samples after that one may have been
     /// computed, never handed over).
     #[inline(always)]
-    fn sample<L: Lattice, F: Field, C: Consumer>(
+    pub(crate) fn sample<L: Lattice, F: Field, C: Consumer>(
         &mut self,
         field: &F,
         ray: &IndexRay,
@@ -656,8 +650,10 @@ mod tests {
     /// comparison can tell.
     #[test]
     fn integrands_that_skip_the_depth_reference_do_not_read_it() {
-        use super::XrayOutput;
         use crate::mode::composite::{Composite, CompositeTable};
+        use crate::mode::crossing::Depth;
+        use crate::mode::projection::{Average, Lmip, Minip, Mip};
+        use crate::mode::xray::{Xray, XrayOutput};
         use crate::transfer::{Interpolation as Ramp, Transfer1D};
         let v: Vec<f32> = (0..40).map(|i| ((i as f32) * 0.37).sin().abs()).collect();
         let field = Line(&v);

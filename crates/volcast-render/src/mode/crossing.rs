@@ -9,8 +9,8 @@ use std::ops::ControlFlow;
 
 use glam::{DVec3, Vec3};
 
-use super::root::illinois;
-use super::{drive, Consumer, Counts, Integrand, PixelRay};
+use crate::render::integrator::root::illinois;
+use crate::render::integrator::{drive, Consumer, Counts, Integrand, PixelRay};
 use crate::render::march::March;
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;
@@ -353,8 +353,8 @@ fn shade_normal(shader: &Shader, ray: &PixelRay, t: f64, normal: Option<DVec3>) 
 
 #[cfg(test)]
 mod tests {
-    use super::super::testing::along_x;
     use super::*;
+    use crate::render::integrator::testing::along_x;
 
     /// `f(x)` along x.
     struct Along<G: Fn(f64) -> f32 + Sync>(G);

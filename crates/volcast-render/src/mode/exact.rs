@@ -28,11 +28,10 @@
 use std::ops::ControlFlow;
 
 use super::crossing::{Entry, Hit};
-use super::root::illinois;
-use super::xray::finish;
-pub use super::CuedMip;
-use super::XrayOutput;
-use super::{Counts, Integrand, PixelRay};
+pub use super::projection::integrator::CuedMip;
+use super::xray::integrator::{finish, XrayOutput};
+use crate::render::integrator::root::illinois;
+use crate::render::integrator::{Counts, Integrand, PixelRay};
 use crate::render::march::March;
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;

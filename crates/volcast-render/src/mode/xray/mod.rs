@@ -1,11 +1,15 @@
 //! The X-ray family: the line integral of the value along each ray, stored as the
 //! integral itself, the absorbed or the transmitted fraction (Beer-Lambert).
 
+pub mod integrator;
+
 use std::sync::Arc;
 
+pub use integrator::{Xray, XrayOutput};
+
+use super::exact::Exact;
 use super::{choose, Keys, Mode, PassContext, Registration};
 use crate::render::frame::RenderView;
-use crate::render::integrator::{Exact, Xray, XrayOutput};
 use crate::render::pass::{ImageKind, RayMode, RenderPass, Resources};
 
 /// `mode = "xray"`.

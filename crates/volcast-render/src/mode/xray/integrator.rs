@@ -4,7 +4,7 @@
 
 use std::ops::ControlFlow;
 
-use super::{drive, Consumer, Counts, Integrand, PixelRay};
+use crate::render::integrator::{drive, Consumer, Counts, Integrand, PixelRay};
 use crate::render::march::March;
 use crate::render::skip::MacroGrid;
 use crate::sample::Field;
@@ -72,7 +72,7 @@ impl Integrand for Xray {
 /// Whether the trapezoid passes over a macrocell of values in `range`: values are
 /// normalised to [0, 1], so a maximum of zero is all zeros.
 #[inline(always)]
-pub(super) fn skippable(range: [f32; 2]) -> bool {
+pub(crate) fn skippable(range: [f32; 2]) -> bool {
     range[1] <= 0.0
 }
 
@@ -93,7 +93,7 @@ pub(super) fn skippable(range: [f32; 2]) -> bool {
 /// depends on its index alone, so the integral has the same bits whatever the
 /// batches (one sample at a time, or runs cut by skipped cells, whose zeros would
 /// leave any sum as it is).
-pub(super) struct Trapezoid<'a> {
+pub(crate) struct Trapezoid<'a> {
     march: &'a March,
     /// The march's [`March::interior`] samples: the first, and how many.
     interior_from: usize,

@@ -9,8 +9,10 @@
 
 use std::ops::ControlFlow;
 
-use super::xray::Trapezoid;
-use super::{drive, padded, take_each, Batch, Consumer, Counts, Integrand, PixelRay, BATCH};
+use crate::mode::xray::integrator::Trapezoid;
+use crate::render::integrator::{
+    drive, padded, take_each, Batch, Consumer, Counts, Integrand, PixelRay, BATCH,
+};
 use crate::render::march::{Lattice, March, UNKNOWN};
 use crate::render::ray::IndexRay;
 use crate::render::skip::MacroGrid;
@@ -692,7 +694,7 @@ impl Integrand for Average {
 
     /// All-zero cells, as the trapezoid passes over them.
     fn fixed_skippable(&self, _cell: usize, range: [f32; 2]) -> Option<bool> {
-        Some(super::xray::skippable(range))
+        Some(crate::mode::xray::integrator::skippable(range))
     }
 
     /// The trapezoid integral over the length; a ray of zero length (grazing a
@@ -806,9 +808,9 @@ impl Integrand for Lmip {
 
 #[cfg(test)]
 mod tests {
-    use super::super::testing::{along_x, Lanes, Line};
-    use super::super::trace;
     use super::*;
+    use crate::render::integrator::testing::{along_x, Lanes, Line};
+    use crate::render::integrator::trace;
     use glam::DVec3;
 
     fn run(i: impl Integrand, v: &'static [f32]) -> f32 {

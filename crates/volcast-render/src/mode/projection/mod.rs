@@ -3,11 +3,16 @@
 //! that depth), the minimum (MinIP), the length-weighted mean (average) and the
 //! first local maximum above a threshold (local MIP).
 
+pub mod integrator;
+
 use std::sync::Arc;
 
+pub use integrator::{Average, CuedMip, CuedOutput, Lmip, Minip, Mip};
+
+use super::exact::Exact;
 use super::{choose, level_note, Keys, Level, Mode, NoteContext, PassContext, Registration};
 use crate::render::frame::RenderView;
-use crate::render::integrator::{Average, CuedMip, CuedOutput, Exact, Integrand, Lmip, Minip, Mip};
+use crate::render::integrator::Integrand;
 use crate::render::pass::{ImageKind, RayMode, RenderPass, Resources};
 use crate::transfer::Colormap;
 
