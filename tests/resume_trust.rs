@@ -265,3 +265,80 @@ fn an_older_manifest_is_said_so_and_its_images_rendered_again() {
     assert_eq!(m["format"], "volcast-manifest-2");
     assert_eq!(m["complete"], true);
 }
+
+/// A record names only the files the plan gives its (pass, frame) (issue 48, item
+/// 2): one edited to name a file outside the output folder, even one with the
+/// recorded bytes, is damaged. `--finish-only` reports it and neither opens that file
+/// nor lists it in the manifest, the page or the animations; `--resume` renders the
+/// frame again. An empty record is damaged too (item 7): `--resume` says so and
+/// renders that frame again instead of failing.
+#[test]
+fn records_naming_other_files_are_damaged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(dir.join("s.toml"), SCENE).unwrap();
+    ok(
+        dir,
+        &["render", "s.toml", "--out", "o", "--viewer", "--quiet"],
+    );
+    let out = dir.join("o");
+    let frame1 = std::fs::read(out.join("mip_0001.png")).unwrap();
+    std::fs::write(dir.join("outside_copy.png"), &frame1).unwrap();
+    let record = out.join("manifest.d/mip_0001.json");
+    let original: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&record).unwrap()).unwrap();
+    let outside = dir.join("outside_copy.png");
+    for name in [
+        "../outside_copy.png",
+        outside.to_str().unwrap(),
+        "mip_0002.png",
+    ] {
+        let mut r = original.clone();
+        r["files"][0]["name"] = name.into();
+        std::fs::write(&record, serde_json::to_vec(&r).unwrap()).unwrap();
+        let o = volcast(
+            dir,
+            &[
+                "render",
+                "s.toml",
+                "--out",
+                "o",
+                "--viewer",
+                "--finish-only",
+                "--confine",
+                "o",
+            ],
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains("mip_0001.json") && err.contains("treated as damaged"),
+            "{name}: {err}"
+        );
+        let m: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+        assert_eq!(m["complete"], false, "{name}");
+        assert_eq!(m["images_done"], 3, "{name}");
+        let listed = m["frames"].to_string();
+        assert!(!listed.contains("outside_copy"), "{name}: {listed}");
+        let page = std::fs::read_to_string(out.join("index.html")).unwrap();
+        assert!(!page.contains("outside_copy"), "{name}");
+    }
+    // --resume renders that frame again, into its own file and record
+    std::fs::remove_file(out.join("mip_0001.png")).unwrap();
+    std::fs::write(out.join("manifest.d/mip_0002.json"), b"").unwrap();
+    let err = ok(
+        dir,
+        &["render", "s.toml", "--out", "o", "--viewer", "--resume"],
+    );
+    assert!(
+        err.contains("mip_0002.json") && err.contains("rendered again"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(out.join("mip_0001.png")).unwrap(), frame1);
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(m["complete"], true);
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&record).unwrap()).unwrap();
+    assert_eq!(r["files"][0]["name"], "mip_0001.png");
+    assert!(out.join("mip.gif").exists() && out.join("index.html").exists());
+}

@@ -260,18 +260,54 @@ pub fn read_record(out: &Path, pass: &str, frame: usize) -> Result<Option<FrameR
 }
 
 /// Whether `record` shows a complete (pass, frame) of the scene hashed `digest`:
-/// the same hash, and every file present (a regular file, not a link) with its
-/// recorded size and SHA-256.
-pub fn is_complete(out: &Path, record: &FrameRecord, digest: &str) -> bool {
+/// the same hash, exactly the files `names` (the names the plan gives that pass
+/// and frame, so a record cannot point outside the folder or at another frame's
+/// file), and every one present (a regular file, not a link) with its recorded size
+/// and SHA-256.
+pub fn is_complete(out: &Path, record: &FrameRecord, digest: &str, names: &[String]) -> bool {
+    if record.scene_hash != digest || !names_match(record, names) {
+        return false;
+    }
     let Ok(folder) = Folder::open(out) else {
         return false;
     };
-    record.scene_hash == digest
-        && !record.files.is_empty()
+    !record.files.is_empty()
         && record
             .files
             .iter()
             .all(|f| file_matches(&folder, &f.name, f.bytes, &f.sha256))
+}
+
+/// Whether `record` lists exactly the files `names`, in order.
+fn names_match(record: &FrameRecord, names: &[String]) -> bool {
+    record.files.len() == names.len() && record.files.iter().zip(names).all(|(f, n)| f.name == *n)
+}
+
+/// The error that says a record of the scene hashed `digest` names files other
+/// than `names` (the plan's for its pass and frame), if it does: such a record is
+/// damaged, or was planted to make volcast read a file outside the folder.
+pub fn foreign_files(
+    out: &Path,
+    record: &FrameRecord,
+    digest: &str,
+    names: &[String],
+) -> Option<Error> {
+    (record.scene_hash == digest && !names_match(record, names)).then(|| Error::Manifest {
+        path: record_path(out, &record.pass, record.frame),
+        message: format!(
+            "the record names the files {}, not {} as this scene writes them: it is treated as damaged (render --resume renders that frame again)",
+            quoted(record.files.iter().map(|f| f.name.as_str())),
+            quoted(names.iter().map(String::as_str)),
+        ),
+    })
+}
+
+/// File names as messages list them: quoted, control characters escaped.
+fn quoted<'a>(names: impl Iterator<Item = &'a str>) -> String {
+    names
+        .map(|n| format!("{n:?}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Whether `name` in `folder` is a regular file of `bytes` bytes whose SHA-256 is
@@ -880,7 +916,14 @@ fn collect(out: &Path, head: &ManifestHead) -> Result<(Vec<FrameRecord>, Manifes
         use rayon::prelude::*;
         keys.par_iter()
             .map(|&(pass, k)| {
-                Ok(read_record(out, pass, k)?.filter(|r| is_complete(out, r, head.digest)))
+                let names = outputs.file_names(pass, k);
+                let Some(r) = read_record(out, pass, k)? else {
+                    return Ok(None);
+                };
+                if let Some(e) = foreign_files(out, &r, head.digest, &names) {
+                    return Err(e);
+                }
+                Ok(is_complete(out, &r, head.digest, &names).then_some(r))
             })
             .collect()
     };
@@ -1026,10 +1069,24 @@ mod tests {
         write_record(&dir, &r).unwrap();
         let back = read_record(&dir, "a", 3).unwrap().unwrap();
         assert_eq!(back, r);
-        assert!(is_complete(&dir, &back, "abc"));
-        assert!(!is_complete(&dir, &back, "abd"));
+        let names = ["a_0003.png".to_string()];
+        assert!(is_complete(&dir, &back, "abc", &names));
+        assert!(!is_complete(&dir, &back, "abd", &names));
+        // a record naming a file the plan does not give that frame is not complete,
+        // even when that file has the recorded bytes
+        std::fs::write(dir.join("a_0004.png"), b"12345").unwrap();
+        assert!(!is_complete(
+            &dir,
+            &back,
+            "abc",
+            &["a_0004.png".to_string()]
+        ));
+        assert!(!is_complete(&dir, &back, "abc", &[]));
         std::fs::write(dir.join("a_0003.png"), b"1234").unwrap();
-        assert!(!is_complete(&dir, &back, "abc"), "a file of another size");
+        assert!(
+            !is_complete(&dir, &back, "abc", &names),
+            "a file of another size"
+        );
         assert_eq!(read_record(&dir, "a", 4).unwrap(), None);
         std::fs::write(record_path(&dir, "a", 4), b"{\"scene_hash\": 1").unwrap();
         let e = read_record(&dir, "a", 4).unwrap_err().to_string();

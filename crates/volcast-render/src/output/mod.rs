@@ -100,6 +100,23 @@ impl Outputs {
         }
     }
 
+    /// The names of the files of pass `pass`, frame `frame`, in the order its record
+    /// lists them: `{pass}_{frame:04}.{ext}`, or its `_left` and `_right` files for
+    /// the `pair` layout. A record that names other files is not this run's.
+    pub fn file_names(&self, pass: &str, frame: usize) -> Vec<String> {
+        let eyes: &[Eye] = match self.stereo {
+            Some(s) if s.layout == Layout::Pair => &[Eye::Left, Eye::Right],
+            _ => &[Eye::Mono],
+        };
+        let ext = self.format.extension();
+        eyes.iter()
+            .map(|&eye| {
+                let path = frame_path(Path::new(""), pass, frame, eye, ext);
+                path.to_string_lossy().into_owned()
+            })
+            .collect()
+    }
+
     /// The image sequences the run writes: one per pass and, for the `pair` layout,
     /// per eye.
     pub fn sequences(&self) -> Vec<animation::Sequence> {

@@ -200,38 +200,41 @@ impl Known {
                 ));
             }
         }
-        let done_for = |digest: &str| -> Result<HashSet<(usize, usize)>, Error> {
-            if opts.finish_only {
-                Ok(plan
-                    .frame_list
-                    .iter()
-                    .flat_map(|&k| (0..plan.passes.len()).map(move |p| (p, k)))
-                    .collect())
-            } else if opts.resume {
-                completed(plan, digest)
-            } else {
-                Ok(HashSet::new())
-            }
-        };
-        // the volume as read, and what is done for its voxels
-        let known =
-            |volume: Volume, identity: crate::volume::VolumeIdentity| -> Result<Known, Error> {
-                let digest = manifest::data_digest(layout, identity.data_xxh3.as_deref());
-                let done = done_for(&digest)?;
-                Ok(Known {
-                    identity,
-                    digest,
-                    done,
-                    volume: Some(volume),
-                })
+        let done_for =
+            |digest: &str, notes: &mut Vec<String>| -> Result<HashSet<(usize, usize)>, Error> {
+                if opts.finish_only {
+                    Ok(plan
+                        .frame_list
+                        .iter()
+                        .flat_map(|&k| (0..plan.passes.len()).map(move |p| (p, k)))
+                        .collect())
+                } else if opts.resume {
+                    completed(plan, digest, notes)
+                } else {
+                    Ok(HashSet::new())
+                }
             };
+        // the volume as read, and what is done for its voxels
+        let known = |volume: Volume,
+                     identity: crate::volume::VolumeIdentity,
+                     notes: &mut Vec<String>|
+         -> Result<Known, Error> {
+            let digest = manifest::data_digest(layout, identity.data_xxh3.as_deref());
+            let done = done_for(&digest, notes)?;
+            Ok(Known {
+                identity,
+                digest,
+                done,
+                volume: Some(volume),
+            })
+        };
         let source = &plan.volume.source;
         let Some(recorded) = resume::trusted_identity(plan, previous.as_ref())? else {
             let (volume, identity) = source.load_identified(limits)?;
-            return known(volume, identity);
+            return known(volume, identity, notes);
         };
         let digest = manifest::data_digest(layout, recorded.data_xxh3.as_deref());
-        let done = done_for(&digest)?;
+        let done = done_for(&digest, notes)?;
         if jobs(plan, &done).is_empty() {
             return Ok(Known {
                 identity: recorded,
@@ -251,7 +254,8 @@ impl Known {
                 volume: Some(volume),
             });
         }
-        known(volume, now)
+        // (the damaged records were noted above)
+        known(volume, now, &mut Vec::new())
     }
 }
 

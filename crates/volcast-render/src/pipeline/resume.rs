@@ -26,7 +26,7 @@ pub fn completed_images(plan: &Plan) -> Result<Option<usize>, Error> {
         return Ok(None);
     };
     let digest = manifest::data_digest(&plan.scene.digest, identity.data_xxh3.as_deref());
-    Ok(Some(completed(plan, &digest)?.len()))
+    Ok(Some(completed(plan, &digest, &mut Vec::new())?.len()))
 }
 
 /// The identity of the voxels when it is known without reading them: a synthetic
@@ -51,23 +51,52 @@ pub(super) fn trusted_identity(
 }
 
 /// The (pass, frame) images of the plan's frames that `--resume` may skip: those
-/// whose record has `digest` and whose files all have the recorded size and
-/// SHA-256 (checked in parallel).
-pub(super) fn completed(plan: &Plan, digest: &str) -> Result<HashSet<(usize, usize)>, Error> {
+/// whose record has `digest`, names the files the plan gives that (pass, frame),
+/// and whose files all have the recorded size and SHA-256 (checked in parallel). A
+/// record that cannot be read (empty, broken, not a record) counts as damaged: its
+/// image is rendered again, and `notes` says so.
+pub(super) fn completed(
+    plan: &Plan,
+    digest: &str,
+    notes: &mut Vec<String>,
+) -> Result<HashSet<(usize, usize)>, Error> {
     let keys: Vec<(usize, usize)> = plan
         .frame_list
         .iter()
         .flat_map(|&k| (0..plan.passes.len()).map(move |p| (p, k)))
         .collect();
-    let found: Vec<Option<(usize, usize)>> = keys
+    // Ok(None): to render; Err(note): a damaged record, to render
+    let found: Vec<Result<Option<(usize, usize)>, String>> = keys
         .par_iter()
         .map(|&(p, k)| {
-            let r = manifest::read_record(&plan.out, &plan.passes[p].name, k)?;
-            Ok(r.filter(|r| manifest::is_complete(&plan.out, r, digest))
-                .map(|_| (p, k)))
+            let name = &plan.passes[p].name;
+            let r = match manifest::read_record(&plan.out, name, k) {
+                Ok(r) => r,
+                Err(e @ Error::Manifest { .. }) => {
+                    return Ok(Err(format!("{e} (that frame is rendered again)")))
+                }
+                Err(e) => return Err(e),
+            };
+            let names = plan.output.file_names(name, k);
+            if let Some(e) = r
+                .as_ref()
+                .and_then(|r| manifest::foreign_files(&plan.out, r, digest, &names))
+            {
+                return Ok(Err(e.to_string()));
+            }
+            Ok(Ok(r
+                .filter(|r| manifest::is_complete(&plan.out, r, digest, &names))
+                .map(|_| (p, k))))
         })
         .collect::<Result<_, Error>>()?;
-    Ok(found.into_iter().flatten().collect())
+    let mut done = HashSet::new();
+    for f in found {
+        match f {
+            Ok(key) => done.extend(key),
+            Err(note) => notes.push(note),
+        }
+    }
+    Ok(done)
 }
 
 /// The (pass, frame) images to render, frame by frame.
