@@ -184,3 +184,51 @@ fn a_frame_that_cannot_be_written_ends_the_run_with_its_name() {
     }
     assert!(!names.iter().any(|n| n.ends_with(".tmp")), "{names:?}");
 }
+
+/// A run that cannot write its files is refused before it writes anything (issue
+/// 48, item 6): a pass name too long for a file name fails `check` and `render`
+/// alike, with nothing left behind.
+#[test]
+fn a_name_too_long_for_a_file_is_refused_before_anything_is_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let name = "n".repeat(250);
+    let scene = format!("{SCENE}name = \"{name}\"\n");
+    std::fs::write(dir.join("s.toml"), scene).unwrap();
+    for cmd in ["check", "render"] {
+        let o = volcast(dir, &[cmd, "s.toml", "--out", "o"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{cmd}: {err}");
+        assert!(
+            err.contains("[[render]] name") && err.contains("too long for a file name"),
+            "{cmd}: {err}"
+        );
+        assert!(!dir.join("o").exists(), "{cmd} left the output folder");
+    }
+    // a name that fits is rendered
+    let scene = format!("{SCENE}name = \"{}\"\n", "n".repeat(100));
+    std::fs::write(dir.join("s.toml"), scene).unwrap();
+    let o = volcast(dir, &["render", "s.toml", "--out", "o", "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// A run that fails removes every folder it created on the way to its output
+/// folder, also along a path through `..` (issue 48, item 6).
+#[test]
+fn a_failed_run_leaves_no_folders_along_a_path_through_dot_dot() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(dir.join("s.toml"), SCENE).unwrap();
+    // enough `..` to reach / from any temporary folder: /proc takes no new folder
+    let out = format!("newdir/up/{}proc/x", "../".repeat(40));
+    let o = volcast(dir, &["render", "s.toml", "--out", &out]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        !dir.join("newdir").exists(),
+        "left {:?} ({err})",
+        std::fs::read_dir(dir.join("newdir"))
+            .map(|d| d.map(|e| e.unwrap().path()).collect::<Vec<_>>())
+            .ok()
+    );
+}

@@ -824,7 +824,62 @@ fn check(
             "--viewer: the turntable page shows the PNG frames in a browser, and this scene writes nrrd (browsers cannot show it): use [image] format = \"png\" or \"png16\"".into(),
         );
     }
+    check_file_names(scene, opts, total)?;
     Ok(frames)
+}
+
+/// The longest file name and path the file system takes (Linux's `NAME_MAX` and
+/// `PATH_MAX` without its terminating zero, which every common file system has).
+const NAME_MAX: usize = 255;
+const PATH_MAX: usize = 4095;
+
+/// Refuses a scene whose output files could not be created: a name longer than a
+/// file name may be (with the temporary name it is first written under), or a path
+/// longer than a path may be. Checked before anything is written, so such a run
+/// leaves nothing behind.
+fn check_file_names(scene: &Scene, opts: &RunOptions, frames: usize) -> Result<(), String> {
+    let out = opts.out.as_deref().unwrap_or(&scene.image.out);
+    let out = std::path::absolute(out).unwrap_or_else(|_| out.to_path_buf());
+    let last = frames.saturating_sub(1);
+    let ext = scene.image.format.extension();
+    for pass in &scene.passes {
+        let p = &pass.name;
+        let mut names = vec![
+            format!("{p}_{last:04}_right.{ext}"),
+            format!("{p}_{last:04}.json"),
+        ];
+        if let Some(a) = &scene.animation {
+            names.extend(
+                a.formats
+                    .iter()
+                    .map(|f| format!("{p}_right.{}", f.extension())),
+            );
+        }
+        for name in names {
+            let temporary = crate::output::write::temporary_name(&name);
+            if temporary.len() > NAME_MAX {
+                return Err(format!(
+                    "[[render]] name = \"{}...\" ({} bytes) is too long for a file name: its files (such as {} bytes of `{}...`, written first under a temporary name of {} bytes) must have names of at most {NAME_MAX} bytes; use a name of at most {} bytes",
+                    p.chars().take(24).collect::<String>(),
+                    p.len(),
+                    name.len(),
+                    name.chars().take(24).collect::<String>(),
+                    temporary.len(),
+                    p.len().saturating_sub(temporary.len() - NAME_MAX)
+                ));
+            }
+            let path = out.join(crate::output::manifest::RECORDS).join(&temporary);
+            if path.as_os_str().len() > PATH_MAX {
+                return Err(format!(
+                    "the output folder {} is too deep: the paths of its files (such as {}) would be {} bytes, over the {PATH_MAX} bytes a path may have",
+                    out.display(),
+                    name,
+                    path.as_os_str().len()
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The eyes of each frame and their azimuth offsets (degrees).

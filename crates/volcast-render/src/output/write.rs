@@ -645,7 +645,7 @@ pub fn remove_stale_temporaries(dir: &Path) -> io::Result<usize> {
 }
 
 /// A fresh temporary name for `name`: `.{name}.{pid}@{host}.{random}.tmp`.
-fn temporary_name(name: &str) -> String {
+pub(crate) fn temporary_name(name: &str) -> String {
     format!(
         ".{name}.{}@{}.{:016x}.tmp",
         std::process::id(),

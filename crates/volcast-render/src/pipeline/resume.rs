@@ -119,31 +119,33 @@ pub(super) fn create_folders(out: &Path) -> Result<(), Error> {
     manifest::records_folder(out).map(drop)
 }
 
-/// The folders from `out` up that do not exist yet (innermost first), with the
-/// records folder: what a run may create.
+/// The folders on the way to `out` that do not exist yet (innermost first), with the
+/// records folder: what a run may create. Every prefix of the path counts, so a path
+/// through `..` (`new/{scene}/../../x`) lists the folders it creates on the way too.
 pub(super) fn missing_folders(out: &Path) -> Vec<PathBuf> {
+    let mut prefix = PathBuf::new();
     let mut missing = Vec::new();
-    let mut p = Some(out);
-    while let Some(dir) = p.filter(|d| !d.as_os_str().is_empty()) {
-        if std::fs::symlink_metadata(dir).is_ok() {
-            break;
+    for c in out.components() {
+        prefix.push(c);
+        // `a/b/..` names `a`, listed already; `a/.` likewise
+        if matches!(c, std::path::Component::Normal(_))
+            && std::fs::symlink_metadata(&prefix).is_err()
+        {
+            missing.push(prefix.clone());
         }
-        missing.push(dir.to_path_buf());
-        p = dir.parent();
     }
+    missing.reverse();
     if !missing.is_empty() {
         missing.insert(0, out.join(manifest::RECORDS));
     }
     missing
 }
 
-/// Removes those of `folders` (innermost first) that are empty; stops at the first
-/// that is not (a run that failed after writing something keeps it).
+/// Removes those of `folders` (innermost first) that are empty (a run that failed
+/// after writing something keeps it, and the folders it is in).
 pub(super) fn remove_empty_folders(folders: &[PathBuf]) {
     for dir in folders {
-        if std::fs::remove_dir(dir).is_err() && dir.exists() {
-            break;
-        }
+        let _ = std::fs::remove_dir(dir);
     }
 }
 
