@@ -324,16 +324,23 @@ fn resume_repairs_damage_and_rerenders_a_changed_scene() {
         now.iter().all(|(n, b)| full[n] != *b),
         "every image changed"
     );
-    // a record that is not a record stops a resume with a clear message
+    // a record that is not a record is damaged: the resume says so and renders that
+    // frame again
     std::fs::write(out.join("manifest.d/composite_0002.json"), b"{not json").unwrap();
     let o = volcast(dir, &["render", "s.toml", "--out", "run", "--resume"]);
-    assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
     assert!(
-        err.contains("composite_0002.json") && err.contains("not a volcast frame record"),
+        err.contains("composite_0002.json")
+            && err.contains("not a volcast frame record")
+            && err.contains("that frame is rendered again")
+            && err.contains("13 images already complete"),
         "{err}"
     );
-    assert!(!err.contains("panicked"), "{err}");
+    let record: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.d/composite_0002.json")).unwrap())
+            .unwrap();
+    assert_eq!(record["frame"], 2);
 }
 
 #[test]

@@ -246,14 +246,14 @@ pub fn read_record(out: &Path, pass: &str, frame: usize) -> Result<Option<FrameR
         Ok(r) => Err(Error::Manifest {
             path,
             message: format!(
-                "the record is for pass `{}` frame {}, not pass `{pass}` frame {frame} as its name says; delete it to render that frame again",
+                "the record is for pass `{}` frame {}, not pass `{pass}` frame {frame} as its name says",
                 r.pass, r.frame
             ),
         }),
         Err(e) => Err(Error::Manifest {
             path,
             message: format!(
-                "not a volcast frame record (expected a JSON object with scene_hash, volcast_version, pass, frame, files, views, window, samples, seconds, shard): {e}; delete it to render that frame again, or render without --resume"
+                "not a volcast frame record (expected a JSON object with scene_hash, volcast_version, pass, frame, files, views, window, samples, seconds, shard): {e}"
             ),
         }),
     }
@@ -295,7 +295,7 @@ pub fn foreign_files(
     (record.scene_hash == digest && !names_match(record, names)).then(|| Error::Manifest {
         path: record_path(out, &record.pass, record.frame),
         message: format!(
-            "the record names the files {}, not {} as this scene writes them: it is treated as damaged (render --resume renders that frame again)",
+            "the record names the files {}, not {} as this scene writes them: it is treated as damaged",
             quoted(record.files.iter().map(|f| f.name.as_str())),
             quoted(names.iter().map(String::as_str)),
         ),

@@ -73,7 +73,7 @@ pub(super) fn completed(
             let r = match manifest::read_record(&plan.out, name, k) {
                 Ok(r) => r,
                 Err(e @ Error::Manifest { .. }) => {
-                    return Ok(Err(format!("{e} (that frame is rendered again)")))
+                    return Ok(Err(format!("{e}: that frame is rendered again")))
                 }
                 Err(e) => return Err(e),
             };
@@ -226,10 +226,9 @@ pub(super) fn finish(
     };
     let status = manifest::write_manifest(out, &head, &mut extra)?;
     summary.notes.extend(
-        status
-            .unreadable
-            .iter()
-            .map(|u| format!("{u} (that frame counts as missing)")),
+        status.unreadable.iter().map(|u| {
+            format!("{u}: that frame counts as missing (render --resume renders it again)")
+        }),
     );
     summary.animations = assembled;
     summary.viewer = page;
