@@ -15,6 +15,7 @@ mod determinism;
 mod exit_codes;
 mod fit;
 mod formats;
+mod formats_hostile;
 mod fuzz;
 mod geometry;
 mod hard_cases;

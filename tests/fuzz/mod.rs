@@ -3,8 +3,10 @@
 //! same for the NIfTI and MetaImage fixtures (issue 9), and
 //! mutated example scenes through the scene parser, the header and the plan (what
 //! `volcast check` does), about two seconds each, every panic caught and reported
-//! with the case that caused it. The long run, every case its own process under a
-//! timeout and a memory limit, is `examples/fuzz.rs` (see docs/testing.md).
+//! with the case that caused it, and a case that raises the process's peak resident
+//! memory past 1 GiB fails too (DICOM files whose hidden lengths made the `dicom`
+//! crate allocate 4 GiB, issue 48). The long run, every case its own process under a
+//! timeout with its peak resident memory measured, is `examples/fuzz.rs` (see docs/testing.md).
 
 mod mutate;
 
@@ -20,6 +22,22 @@ use volcast::volume::{Limits, Stats, VolumeSource};
 const BUDGET: Duration = Duration::from_millis(2000);
 /// The seed of the run in `cargo test` (`VOLCAST_FUZZ_SEED` overrides it).
 const SEED: u64 = 10;
+/// Peak resident memory of the test process that a case may not raise it above:
+/// the cases read within 64 MiB, so only a blow-up gets there.
+const MAX_RSS: u64 = 1 << 30;
+
+/// The peak resident memory of this process so far, in bytes (0 where unknown).
+fn peak_rss() -> u64 {
+    #[cfg(unix)]
+    {
+        // SAFETY: getrusage fills the zeroed struct it is given.
+        let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+        if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } == 0 {
+            return usage.ru_maxrss as u64 * 1024;
+        }
+    }
+    0
+}
 
 fn seed() -> u64 {
     std::env::var("VOLCAST_FUZZ_SEED")
@@ -98,6 +116,7 @@ fn run(kind: Kind) {
     let seed = seed();
     let start = Instant::now();
     let mut n = 0u64;
+    let mut before = peak_rss();
     // the panic messages of caught cases are expected noise only on failure
     while start.elapsed() < BUDGET {
         let (name, bytes) = case(kind, &seeds, seed, n);
@@ -107,26 +126,38 @@ fn run(kind: Kind) {
             Kind::Scene => scene_case(&path),
             Kind::Formats => formats_case(&path),
         }));
-        if let Err(e) = outcome {
-            let msg = e
-                .downcast_ref::<String>()
-                .cloned()
-                .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
-                .unwrap_or_default();
+        let peak = peak_rss();
+        let failure = match outcome {
+            Err(e) => Some(format!(
+                "panicked: {}",
+                e.downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_default()
+            )),
+            Ok(()) if peak > MAX_RSS && peak > before => Some(format!(
+                "raised the peak resident memory to {} MiB",
+                peak >> 20
+            )),
+            Ok(()) => None,
+        };
+        if let Some(why) = failure {
             let keep = root.join(format!("fuzz-failures/{}-{seed}-{n}", kind.name()));
             let _ = std::fs::create_dir_all(&keep);
             let _ = std::fs::write(keep.join(&name), &bytes);
             panic!(
-                "{kind:?} case {n} (seed {seed}) panicked: {msg}; input saved in {}",
+                "{kind:?} case {n} (seed {seed}) {why}; input saved in {}",
                 keep.display()
             );
         }
+        before = peak;
         n += 1;
     }
     println!(
-        "fuzz {}: {n} cases in {:?}, no panic",
+        "fuzz {}: {n} cases in {:?}, no panic, peak resident memory of the process {} MiB",
         kind.name(),
-        start.elapsed()
+        start.elapsed(),
+        peak_rss() >> 20
     );
     assert!(n > 50, "only {n} cases ran");
 }

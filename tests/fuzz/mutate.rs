@@ -141,6 +141,14 @@ pub const META_LINES: &[&str] = &[
     "ElementSpacing = 1e308 1e-308 nan",
     "TransformMatrix = 0 0 0 0 0 0 0 0 0",
     "Offset = 1e308 -1e308 0",
+    "Origin = 100 200 300",
+    "Position = nan garbage",
+    "Position = 1 2 3",
+    "Rotation = 0 1 0 -1 0 0 0 0 1",
+    "Orientation = 1 0 0",
+    "ElementSize = 4 5 6",
+    "FileFormatVersion = 1",
+    "origin = 7 7 7",
     "ElementDataFile = /dev/zero",
     "ElementDataFile = fifo",
     "ElementDataFile = .",
@@ -182,6 +190,112 @@ fn mutate_nifti_fields(rng: &mut Rng, b: &mut [u8]) {
         let (at, bytes) = *rng.pick(NIFTI_FIELDS);
         if let Some(dst) = b.get_mut(at..at + bytes.len()) {
             dst.copy_from_slice(bytes);
+        }
+    }
+}
+
+/// The byte after a DICOM file's meta group (by its (0002,0000)), if it has one.
+fn dicom_meta_end(b: &[u8]) -> Option<usize> {
+    if b.get(128..132)? != b"DICM" || b.get(132..140)? != [2, 0, 0, 0, b'U', b'L', 4, 0] {
+        return None;
+    }
+    let g = u32::from_le_bytes(b.get(140..144)?.try_into().ok()?);
+    Some((144 + g as usize).min(b.len()))
+}
+
+/// Declared lengths worth hiding in DICOM elements.
+const DICOM_LENGTHS: &[u32] = &[
+    0xFFFF_FFF0,
+    0xFFFF_FFFE,
+    0x7FFF_FFFF,
+    0x0100_0000,
+    65_536,
+    9,
+];
+
+/// An element header (little endian, explicit VR unless `implicit`) of `tag`, `vr`
+/// and `len`.
+fn dicom_header(implicit: bool, tag: (u16, u16), vr: &[u8; 2], len: u32) -> Vec<u8> {
+    let mut v = Vec::new();
+    v.extend(tag.0.to_le_bytes());
+    v.extend(tag.1.to_le_bytes());
+    if implicit {
+        v.extend(len.to_le_bytes());
+        return v;
+    }
+    v.extend(vr);
+    if matches!(vr, b"OB" | b"OW" | b"SQ" | b"UN" | b"UT" | b"UC") {
+        v.extend([0, 0]);
+        v.extend(len.to_le_bytes());
+    } else {
+        v.extend((len as u16).to_le_bytes());
+    }
+    v
+}
+
+/// Structural edits of a DICOM file where the readers look for lengths: a sequence
+/// at the start of the data set whose item begins with an element of a private
+/// group, of group 0000 or 0002, or an item tag, declaring a huge length over a few
+/// real bytes; items of defined and undefined length, nested sequences, stray
+/// delimiters; the file meta group length made short or long.
+fn mutate_dicom(rng: &mut Rng, b: &mut Vec<u8>) {
+    let Some(meta_end) = dicom_meta_end(b) else {
+        return;
+    };
+    let implicit = b[..meta_end]
+        .windows(18)
+        .any(|w| w == b"1.2.840.10008.1.2\0");
+    match rng.below(4) {
+        0 => {
+            // (0002,0000) off by a few bytes: meta elements read as data set
+            // elements, or data set elements read as meta elements
+            let g = u32::from_le_bytes(b[140..144].try_into().unwrap_or_default());
+            let d = *rng.pick(&[8i64, 14, 22, 30, -2, -8, -22, 1, 12, 1000]);
+            let g = (i64::from(g) - d).clamp(0, u32::MAX.into()) as u32;
+            b[140..144].copy_from_slice(&g.to_le_bytes());
+        }
+        1 => {
+            // a stray delimiter or item at the data set's start
+            let tag = *rng.pick(&[0xE000u16, 0xE00D, 0xE0DD]);
+            let mut v = vec![0xFE, 0xFF];
+            v.extend(tag.to_le_bytes());
+            v.extend(rng.pick(DICOM_LENGTHS).to_le_bytes());
+            b.splice(meta_end..meta_end, v);
+        }
+        _ => {
+            // sequences nested 1 to 3 deep, the innermost item's first element
+            // declaring a huge length
+            let group = *rng.pick(&[
+                0x0029u16, 0x0000, 0x0002, 0x0009, 0x0011, 0x7FE0, 0xFFFE, 0x0008,
+            ]);
+            let vr = rng.pick(&[b"OB", b"UN", b"UT", b"SQ", b"OW", b"UI", b"LO"]);
+            let mut inner = dicom_header(implicit, (group, 0x1010), vr, *rng.pick(DICOM_LENGTHS));
+            inner.extend([7u8; 8]);
+            for _ in 0..1 + rng.below(3) {
+                let defined = rng.below(2) == 0;
+                let mut item = vec![0xFE, 0xFF, 0x00, 0xE0];
+                item.extend(
+                    if defined {
+                        inner.len() as u32
+                    } else {
+                        u32::MAX
+                    }
+                    .to_le_bytes(),
+                );
+                item.extend(&inner);
+                if !defined {
+                    item.extend([0xFE, 0xFF, 0x0D, 0xE0, 0, 0, 0, 0]);
+                }
+                let defined = rng.below(2) == 0;
+                let len = if defined { item.len() as u32 } else { u32::MAX };
+                let mut seq = dicom_header(implicit, (0x0008, 0x1140), b"SQ", len);
+                seq.extend(&item);
+                if !defined {
+                    seq.extend([0xFE, 0xFF, 0xDD, 0xE0, 0, 0, 0, 0]);
+                }
+                inner = seq;
+            }
+            b.splice(meta_end..meta_end, inner);
         }
     }
 }
@@ -414,6 +528,14 @@ pub fn mutate_kind(rng: &mut Rng, input: &[u8], kind: Kind) -> Vec<u8> {
         let mut b = input.to_vec();
         mutate_nifti_fields(rng, &mut b);
         if rng.below(2) == 0 {
+            return mutate(rng, &b, dict);
+        }
+        return b;
+    }
+    if kind == Kind::Formats && dicom_meta_end(input).is_some() && rng.below(2) == 0 {
+        let mut b = input.to_vec();
+        mutate_dicom(rng, &mut b);
+        if rng.below(3) == 0 {
             return mutate(rng, &b, dict);
         }
         return b;

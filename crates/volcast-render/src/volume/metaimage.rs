@@ -5,8 +5,10 @@
 //! ```text
 //! read_header      `Key = Value` lines up to `ElementDataFile` (the last key), each
 //!                  checked: NDims, DimSize, ElementType, ElementNumberOfChannels,
-//!                  ElementSpacing, Offset, TransformMatrix, byte order, compression,
-//!                  HeaderSize; LIST and numbered data files refused by name
+//!                  ElementSpacing, Offset, TransformMatrix (and their synonyms,
+//!                  chosen as ITK's MetaIO does), byte order, compression,
+//!                  HeaderSize; LIST and numbered data files refused by name; keys
+//!                  matched case-sensitively, as ITK does
 //! MetaSpec::load   uncompressed, native order: lengths checked, mapped
 //!                  otherwise: Limits::check, then decoded (zlib, byte swap)
 //! ```
@@ -109,15 +111,60 @@ struct Entries {
     list: Vec<(String, Entry)>,
 }
 
+/// The keys volcast reads, spelt as ITK's MetaIO matches them (case-sensitively).
+const KEYS: &[&str] = &[
+    "ObjectType",
+    "NDims",
+    "DimSize",
+    "ElementType",
+    "ElementNumberOfChannels",
+    "BinaryData",
+    "ElementSpacing",
+    "ElementSize",
+    "Offset",
+    "Position",
+    "Origin",
+    "TransformMatrix",
+    "Rotation",
+    "Orientation",
+    "BinaryDataByteOrderMSB",
+    "ElementByteOrderMSB",
+    "CompressedData",
+    "CompressedDataSize",
+    "HeaderSize",
+    "ElementDataFile",
+    "FileFormatVersion",
+    "AnatomicalOrientation",
+    "Modality",
+    "Comment",
+];
+
 impl Entries {
     /// The entry of the first of `names` present.
     fn get(&self, names: &[&str]) -> Option<(&str, &Entry)> {
         names.iter().find_map(|n| {
             self.list
                 .iter()
-                .find(|(k, _)| k.eq_ignore_ascii_case(n))
+                .find(|(k, _)| k == n)
                 .map(|(k, e)| (k.as_str(), e))
         })
+    }
+
+    /// Every one of `synonyms` present, parsed and checked (`count` finite numbers),
+    /// with its key and line; the one ITK uses first.
+    fn synonyms<'a>(
+        &self,
+        synonyms: &[&'a str],
+        count: usize,
+    ) -> Result<Vec<(&'a str, usize, Vec<f64>)>, VolumeError> {
+        let mut found = Vec::new();
+        for &name in synonyms {
+            if let Some(v) = self.numbers(&[name], count)? {
+                let line = self.get(&[name]).map_or(0, |(_, e)| e.line);
+                found.push((name, line, v));
+            }
+        }
+        Ok(found)
     }
 
     fn numbers(&self, names: &[&str], count: usize) -> Result<Option<Vec<f64>>, VolumeError> {
@@ -221,6 +268,17 @@ fn read_entries(path: &Path, r: &mut impl BufRead) -> Result<(Entries, u64), Vol
             ));
         };
         let (key, value) = (key.trim().to_string(), value.trim().to_string());
+        if let Some(known) = KEYS
+            .iter()
+            .find(|k| k.eq_ignore_ascii_case(&key) && **k != key)
+        {
+            // ITK matches keys case-sensitively and would ignore this one
+            return Err(header_err(
+                path,
+                line,
+                format!("`{key}`: MetaImage keys are case-sensitive; ITK reads `{known}`, and ignores `{key}`"),
+            ));
+        }
         if let Some((_, e)) = list.iter().find(|(k, _)| k.eq_ignore_ascii_case(&key)) {
             return Err(header_err(
                 path,
@@ -228,7 +286,7 @@ fn read_entries(path: &Path, r: &mut impl BufRead) -> Result<(Entries, u64), Vol
                 format!("`{key}` is given twice (first on line {})", e.line),
             ));
         }
-        let last = key.eq_ignore_ascii_case("ElementDataFile");
+        let last = key == "ElementDataFile";
         list.push((key, Entry { line, value }));
         if last {
             break;
@@ -337,22 +395,58 @@ fn parse(path: &Path, e: &Entries, data_start: u64) -> Result<MetaHeader, Volume
                 .into(),
         ));
     }
-    let spacing = e
-        .numbers(&["ElementSpacing", "ElementSize"], ndims)?
-        .unwrap_or_else(|| vec![1.0; ndims]);
-    let offset = e
-        .numbers(&["Offset", "Position", "Origin"], ndims)?
-        .unwrap_or_else(|| vec![0.0; ndims]);
-    let matrix = e
-        .numbers(
-            &["TransformMatrix", "Rotation", "Orientation"],
-            ndims * ndims,
-        )?
-        .unwrap_or_else(|| {
+    // Synonyms as ITK's MetaIO reads them, whatever their order in the file: each is
+    // checked, and the first of each list below wins.
+    let spacings = e.synonyms(&["ElementSpacing", "ElementSize"], ndims)?;
+    let origins = e.synonyms(&["Origin", "Offset", "Position"], ndims)?;
+    let matrices = e.synonyms(
+        &["TransformMatrix", "Rotation", "Orientation"],
+        ndims * ndims,
+    )?;
+    let find = |name: &str| origins.iter().find(|o| o.0 == name);
+    if let (None, Some((_, l1, a)), Some((_, l2, b))) =
+        (find("Origin"), find("Offset"), find("Position"))
+    {
+        // MetaIO versions differ on whether Offset or Position comes last
+        if a != b {
+            return Err(header_err(
+                path,
+                (*l1).max(*l2),
+                format!(
+                    "`Offset` (line {l1}) and `Position` (line {l2}) give different origins {a:?} and {b:?}: versions of ITK differ on which one wins; give one of them, or `Origin`"
+                ),
+            ));
+        }
+    }
+    if let Some(v) = e.integer("FileFormatVersion")? {
+        // MetaIO reads Position, Origin, Rotation and Orientation only in version 0
+        let legacy = ["Position", "Origin", "Rotation", "Orientation"]
+            .into_iter()
+            .find(|k| e.get(&[k]).is_some());
+        if let (true, Some(k)) = (v != 0, legacy) {
+            return Err(header_err(
+                path,
+                e.get(&[k]).map_or(0, |(_, x)| x.line),
+                format!("`{k}` with `FileFormatVersion = {v}`: versions of ITK differ on whether they read it; use `Offset` and `TransformMatrix`"),
+            ));
+        }
+    }
+    let spacing = spacings
+        .into_iter()
+        .next()
+        .map_or_else(|| vec![1.0; ndims], |s| s.2);
+    let offset = origins
+        .into_iter()
+        .next()
+        .map_or_else(|| vec![0.0; ndims], |s| s.2);
+    let matrix = matrices.into_iter().next().map_or_else(
+        || {
             (0..ndims * ndims)
                 .map(|i| if i / ndims == i % ndims { 1.0 } else { 0.0 })
                 .collect()
-        });
+        },
+        |s| s.2,
+    );
     let n3 = ndims.min(3);
     let component = |v: &[f64], i: usize| if i < n3 { v[i] } else { 0.0 };
     let mut axes = [DVec3::Z; 3];

@@ -1,11 +1,17 @@
 //! A pass over a DICOM file's elements before the `dicom` crate reads it: the crate
 //! allocates each value from its declared length (up to 4 GiB) before reading it, so
-//! every declared length is checked here against the bytes left in the file first.
-//! Also reads the transfer syntax from the file meta group, so that compressed data is
-//! refused by name before it is parsed.
+//! every length the crate will read is checked here against the bytes left in the
+//! file first. The walk follows the crate's own reading step by step (its file meta
+//! loop bounded by (0002,0000), then the token states of its data set reader), so
+//! that no element it reads escapes the check. Also reads the transfer syntax from
+//! the file meta group, so that compressed data is refused by name before it is
+//! parsed.
 
 use std::io::{self, BufRead, BufReader, Read};
 use std::path::Path;
+
+use dicom_core::dictionary::{DataDictionary, DataDictionaryEntry};
+use dicom_dictionary_std::StandardDataDictionary;
 
 use crate::volume::mapped::open_regular;
 use crate::volume::VolumeError;
@@ -19,6 +25,11 @@ const KNOWN_VRS: [&[u8; 2]; 34] = [
 
 /// Deepest nesting of sequences accepted.
 const MAX_DEPTH: usize = 32;
+
+const ITEM: (u16, u16) = (0xFFFE, 0xE000);
+const ITEM_END: (u16, u16) = (0xFFFE, 0xE00D);
+const SEQUENCE_END: (u16, u16) = (0xFFFE, 0xE0DD);
+const PIXEL_DATA: (u16, u16) = (0x7FE0, 0x0010);
 
 /// What the scan found.
 #[derive(Debug)]
@@ -43,18 +54,28 @@ pub(super) fn scan(path: &Path) -> Result<Option<Scanned>, VolumeError> {
     if len < 132 || r.read_exact(&mut head).is_err() || &head[128..] != b"DICM" {
         return Ok(None);
     }
-    // the file meta group: explicit VR little endian, group 0002
+    // the file meta group as the crate reads it: (0002,0000) first, then explicit VR
+    // little-endian elements of any group while its value is not used up
+    let first = r.element_header_vr(true, true)?;
+    if first.tag != (0x0002, 0x0000) || first.length != Some(4) {
+        return Err(r.error(format!(
+            "the file meta group starts with {} of length {}, expected its group length (0002,0000) UL of 4 bytes",
+            show(first.tag),
+            first.length.map_or("undefined".to_string(), |n| n.to_string())
+        )));
+    }
+    let mut g = [0u8; 4];
+    r.read_exact(&mut g)?;
+    let group_length = u32::from_le_bytes(g);
+    let mut used = 0u32;
     let mut ts = None;
     let mut sop_class = None;
-    loop {
-        let peek = r.peek2()?;
-        if peek != Some(2) {
-            break;
-        }
+    while used < group_length {
+        let at = r.pos;
         let ElementHeader { tag, length, .. } = r.element_header_vr(true, true)?;
         let Some(length) = length else {
             return Err(r.error(format!(
-                "file meta element {} has an undefined length",
+                "file meta element {} at byte {at} has an undefined length",
                 show(tag)
             )));
         };
@@ -71,11 +92,14 @@ pub(super) fn scan(path: &Path) -> Result<Option<Scanned>, VolumeError> {
                 sop_class = Some(s);
             }
         } else {
-            r.skip(length as u64)?;
+            r.skip(u64::from(length))?;
         }
+        used = used.saturating_add((r.pos - at) as u32);
     }
     let Some(transfer_syntax) = ts else {
-        return Err(r.error("the file meta group has no transfer syntax (0002,0010)".into()));
+        return Err(r.error(format!(
+            "the file meta group (its {group_length} bytes by (0002,0000)) has no transfer syntax (0002,0010)"
+        )));
     };
     let (explicit, little) = match transfer_syntax.as_str() {
         "1.2.840.10008.1.2" => (false, true),
@@ -89,8 +113,7 @@ pub(super) fn scan(path: &Path) -> Result<Option<Scanned>, VolumeError> {
             }))
         }
     };
-    // the data set: only the lengths matter
-    r.walk(explicit, little, 0, None)?;
+    r.walk(explicit, little)?;
     Ok(Some(Scanned {
         transfer_syntax,
         sop_class,
@@ -114,11 +137,22 @@ fn show(tag: (u16, u16)) -> String {
     format!("({:04X},{:04X})", tag.0, tag.1)
 }
 
-/// An element's tag, length (`None` = undefined) and whether its VR is SQ.
+/// An element's tag, length (`None` = undefined) and whether it is read as a
+/// sequence (VR SQ, or in implicit VR the dictionary's SQ).
 struct ElementHeader {
     tag: (u16, u16),
     length: Option<u32>,
     sq: bool,
+}
+
+/// An open sequence or item, as the crate's reader keeps them on its stack.
+struct Open {
+    item: bool,
+    tag: (u16, u16),
+    /// The byte after its last, for a defined length.
+    end: Option<u64>,
+    /// In encapsulated pixel data: its items are fragments (bytes).
+    pixel: bool,
 }
 
 struct Walker<'a> {
@@ -161,22 +195,12 @@ impl Walker<'_> {
         Ok(())
     }
 
-    /// The group of the next element (little-endian), `None` at the end of the file.
-    fn peek2(&mut self) -> Result<Option<u16>, VolumeError> {
-        let buf = self.fill()?;
-        Ok(match buf {
-            [] => None,
-            [a, b, ..] => Some(u16::from_le_bytes([*a, *b])),
-            [_] => Some(u16::MAX),
-        })
-    }
-
     fn at_end(&mut self) -> Result<bool, VolumeError> {
         Ok(self.fill()?.is_empty())
     }
 
     /// The header of the next element: its tag, length (`None` = undefined) and
-    /// whether its VR is SQ (explicit VR only).
+    /// whether the crate reads it as a sequence.
     fn element_header_vr(
         &mut self,
         explicit: bool,
@@ -204,10 +228,17 @@ impl Walker<'_> {
         if tag.0 == 0xFFFE || !explicit {
             self.read_exact(&mut l)?;
             let n = u32_of(l);
+            // implicit VR: the crate takes the VR from the standard dictionary
+            let sq = !explicit
+                && tag.0 != 0xFFFE
+                && tag != PIXEL_DATA
+                && StandardDataDictionary
+                    .by_tag(dicom_core::Tag(tag.0, tag.1))
+                    .is_some_and(|e| e.vr().relaxed() == dicom_core::VR::SQ);
             return Ok(ElementHeader {
                 tag,
                 length: (n != u32::MAX).then_some(n),
-                sq: false,
+                sq,
             });
         }
         let mut vr = [0u8; 2];
@@ -266,91 +297,152 @@ impl Walker<'_> {
         Ok(())
     }
 
-    /// Walks elements until the end of the file, of a defined-length container (`end`),
-    /// or of an undefined-length one (its delimiter).
-    fn walk(
-        &mut self,
-        explicit: bool,
-        little: bool,
-        depth: usize,
-        end: Option<u64>,
+    /// Opens a sequence or item whose header was just read.
+    fn push(
+        &self,
+        stack: &mut Vec<Open>,
+        open: (bool, (u16, u16), Option<u32>, bool),
     ) -> Result<(), VolumeError> {
-        if depth > MAX_DEPTH {
+        let (item, tag, length, pixel) = open;
+        if let Some(n) = length {
+            self.check_length(tag, n)?;
+        }
+        if !item && stack.iter().filter(|o| !o.item).count() >= MAX_DEPTH {
             return Err(self.error(format!(
                 "sequences nested deeper than {MAX_DEPTH} levels at byte {}",
                 self.pos
             )));
         }
+        stack.push(Open {
+            item,
+            tag,
+            end: length.map(|n| self.pos + u64::from(n)),
+            pixel,
+        });
+        Ok(())
+    }
+
+    /// Walks the data set as the crate's data set reader does, to the end of the
+    /// file: element values, sequences (SQ, or any other undefined length), their
+    /// items (always elements, except the fragments of encapsulated pixel data) and
+    /// delimiters, with every length checked before the crate would allocate it.
+    fn walk(&mut self, explicit: bool, little: bool) -> Result<(), VolumeError> {
+        let mut stack: Vec<Open> = Vec::new();
+        // between the items of a sequence (an item header comes next)
+        let mut in_sequence = false;
         loop {
-            if end.is_some_and(|e| self.pos >= e) || (end.is_none() && self.at_end()?) {
-                if let Some(e) = end {
-                    if self.pos > e {
+            // containers of defined length end where their length says
+            while let Some(top) = stack.last() {
+                let Some(end) = top.end else { break };
+                if self.pos < end {
+                    break;
+                }
+                if self.pos > end {
+                    return Err(self.error(format!(
+                        "an element runs past the end of {} {} (byte {end})",
+                        if top.item { "the item in" } else { "sequence" },
+                        show(top.tag)
+                    )));
+                }
+                in_sequence = top.item;
+                stack.pop();
+            }
+            if in_sequence {
+                if self.at_end()? {
+                    if stack.last().is_some_and(|o| o.pixel) {
+                        return Ok(());
+                    }
+                    return Err(self.error(format!(
+                        "the file ends inside a sequence at byte {}",
+                        self.pos
+                    )));
+                }
+                let mut h = [0u8; 8];
+                self.read_exact(&mut h)?;
+                let u16_at = |i: usize| {
+                    if little {
+                        u16::from_le_bytes([h[i], h[i + 1]])
+                    } else {
+                        u16::from_be_bytes([h[i], h[i + 1]])
+                    }
+                };
+                let tag = (u16_at(0), u16_at(2));
+                let raw = [h[4], h[5], h[6], h[7]];
+                let n = if little {
+                    u32::from_le_bytes(raw)
+                } else {
+                    u32::from_be_bytes(raw)
+                };
+                let length = (n != u32::MAX).then_some(n);
+                match tag {
+                    ITEM => {
+                        let Some(parent) = stack.last() else {
+                            return Err(self.error(format!(
+                                "an item outside any sequence at byte {}",
+                                self.pos - 8
+                            )));
+                        };
+                        let (pixel, parent) = (parent.pixel, parent.tag);
+                        if pixel && length.is_none() {
+                            return Err(self.error(format!(
+                                "a pixel data fragment of undefined length at byte {}",
+                                self.pos - 8
+                            )));
+                        }
+                        self.push(&mut stack, (true, parent, length, pixel))?;
+                        in_sequence = false;
+                    }
+                    ITEM_END => {
+                        stack.pop();
+                        in_sequence = true;
+                    }
+                    SEQUENCE_END => {
+                        stack.pop();
+                        in_sequence = false;
+                    }
+                    other => {
                         return Err(self.error(format!(
-                            "an element runs past the end of its item or sequence (byte {e})"
+                            "expected an item (FFFE,E000) at byte {} of sequence {}, found {}",
+                            self.pos - 8,
+                            stack.last().map_or("?".into(), |o| show(o.tag)),
+                            show(other)
                         )));
                     }
                 }
+                continue;
+            }
+            if let Some(top) = stack.last() {
+                if top.item && top.pixel {
+                    // a fragment: bytes (its length was checked when it opened)
+                    let end = top.end.unwrap_or(self.pos);
+                    self.skip(end - self.pos)?;
+                    continue;
+                }
+            }
+            // the crate ends a data set where the file ends, at any depth
+            if self.at_end()? {
                 return Ok(());
             }
             let ElementHeader { tag, length, sq } = self.element_header_vr(explicit, little)?;
-            match (tag, length) {
-                // item and sequence delimiters end an undefined-length container
-                ((0xFFFE, 0xE00D), _) | ((0xFFFE, 0xE0DD), _) => {
-                    if depth == 0 {
-                        return Err(self.error(format!(
-                            "a delimiter {} outside any sequence at byte {}",
-                            show(tag),
-                            self.pos
-                        )));
-                    }
-                    return Ok(());
+            if sq {
+                self.push(&mut stack, (false, tag, length, false))?;
+                in_sequence = true;
+            } else if tag == ITEM_END {
+                // outside any sequence the crate ignores it
+                if !stack.is_empty() {
+                    stack.pop();
+                    in_sequence = true;
                 }
-                // an item (or a fragment of encapsulated pixel data): its elements
-                ((0xFFFE, 0xE000), Some(n)) => {
-                    self.check_length(tag, n)?;
-                    let e = self.pos + u64::from(n);
-                    if self.looks_like_elements(n)? {
-                        self.walk(explicit, little, depth + 1, Some(e))?;
-                    } else {
-                        self.skip(u64::from(n))?;
-                    }
-                }
-                (_, None) => self.walk(explicit, little, depth + 1, None)?,
-                (_, Some(n)) => {
-                    self.check_length(tag, n)?;
-                    let e = self.pos + u64::from(n);
-                    if sq || (!explicit && n >= 8 && self.next_is_item(little)?) {
-                        self.walk(explicit, little, depth + 1, Some(e))?;
-                    } else {
-                        self.skip(u64::from(n))?;
-                    }
-                }
+            } else if length.is_none() {
+                // encapsulated pixel data holds fragments; any other undefined
+                // length is read as a sequence of items holding elements
+                self.push(&mut stack, (false, tag, None, tag == PIXEL_DATA))?;
+                in_sequence = true;
+            } else if let Some(n) = length {
+                self.check_length(tag, n)?;
+                self.skip(u64::from(n))?;
             }
         }
-    }
-
-    /// True when the next 4 bytes are an item tag (FFFE,E000).
-    fn next_is_item(&mut self, little: bool) -> Result<bool, VolumeError> {
-        let buf = self.fill()?;
-        let item: [u8; 4] = if little {
-            [0xFE, 0xFF, 0x00, 0xE0]
-        } else {
-            [0xFF, 0xFE, 0xE0, 0x00]
-        };
-        Ok(buf.len() >= 4 && buf[..4] == item)
-    }
-
-    /// An item holds elements unless it is a fragment of encapsulated pixel data:
-    /// fragments are skipped as bytes (their length was checked).
-    fn looks_like_elements(&mut self, n: u32) -> Result<bool, VolumeError> {
-        Ok(n >= 8 && {
-            let buf = self.fill()?;
-            // an element starts with an even group below FFFE, or a small odd one
-            buf.len() >= 4 && {
-                let g = u16::from_le_bytes([buf[0], buf[1]]);
-                g != 0 && g < 0x7FE1 && (g % 2 == 0 || g < 0x10)
-            }
-        })
     }
 }
 
@@ -367,7 +459,9 @@ mod tests {
         let p = dir.path().join("x.dcm");
         let mut b = vec![0u8; 128];
         b.extend(b"DICM");
-        // (0002,0010) UI, explicit VR LE
+        // (0002,0000) UL: the group length, then (0002,0010) UI, explicit VR LE
+        b.extend([0x02, 0x00, 0x00, 0x00, b'U', b'L', 4, 0]);
+        b.extend((8 + ts.len() as u32).to_le_bytes());
         b.extend([0x02, 0x00, 0x10, 0x00, b'U', b'I']);
         b.extend((ts.len() as u16).to_le_bytes());
         b.extend(ts);
@@ -402,5 +496,95 @@ mod tests {
         let q = dir.path().join("notes.txt");
         std::fs::write(&q, b"hello").unwrap();
         assert!(scan(&q).unwrap().is_none());
+    }
+
+    /// A sequence (0008,1140) of undefined length with one item of `item` bytes.
+    fn sequence(item: &[u8]) -> Vec<u8> {
+        let mut v = vec![
+            0x08, 0x00, 0x40, 0x11, b'S', b'Q', 0, 0, 0xFF, 0xFF, 0xFF, 0xFF,
+        ];
+        v.extend([0xFE, 0xFF, 0x00, 0xE0]);
+        v.extend((item.len() as u32).to_le_bytes());
+        v.extend(item);
+        v.extend([0xFE, 0xFF, 0xDD, 0xE0, 0, 0, 0, 0]);
+        v
+    }
+
+    /// `tag` OB declaring 0xFFFFFFF0 bytes, followed by 8.
+    fn huge_ob(tag: (u16, u16)) -> Vec<u8> {
+        let mut v = Vec::new();
+        v.extend(tag.0.to_le_bytes());
+        v.extend(tag.1.to_le_bytes());
+        v.extend([b'O', b'B', 0, 0, 0xF0, 0xFF, 0xFF, 0xFF]);
+        v.extend([7u8; 8]);
+        v
+    }
+
+    #[test]
+    fn every_item_of_a_sequence_is_walked() {
+        // items whose first element is private or in group 0000 hold elements too
+        for tag in [(0x0029, 0x1010), (0x0000, 0x1010), (0x0009, 0x0010)] {
+            let (_d, p) = file(&sequence(&huge_ob(tag)));
+            let e = scan(&p).unwrap_err().to_string();
+            assert!(
+                e.contains(&show(tag)) && e.contains("declares 4294967280 bytes"),
+                "{e}"
+            );
+        }
+        // the same bytes as a pixel data fragment are bytes, not elements
+        let mut pixels = vec![
+            0xE0, 0x7F, 0x10, 0x00, b'O', b'B', 0, 0, 0xFF, 0xFF, 0xFF, 0xFF,
+        ];
+        pixels.extend(&sequence(&huge_ob((0x0029, 0x1010)))[12..]);
+        let (_d, p) = file(&pixels);
+        assert!(scan(&p).unwrap().is_some());
+        // a well-formed item is walked through
+        let mut item = vec![0x08, 0x00, 0x50, 0x11, b'U', b'I', 4, 0];
+        item.extend(b"1.2\0");
+        let (_d, p) = file(&sequence(&item));
+        assert!(scan(&p).unwrap().is_some());
+    }
+
+    #[test]
+    fn the_meta_group_ends_where_its_length_says() {
+        // a group length 8 bytes short of (0002,0010): the crate finds no transfer syntax
+        let (_d, p) = file(&[]);
+        let mut b = std::fs::read(&p).unwrap();
+        b[140..144].copy_from_slice(&0u32.to_le_bytes());
+        std::fs::write(&p, &b).unwrap();
+        let e = scan(&p).unwrap_err().to_string();
+        assert!(e.contains("no transfer syntax (0002,0010)"), "{e}");
+        // implicit VR: a meta element left out of the group is a data set element
+        // whose VR and 16-bit length make a 32-bit length
+        let (_d, p) = file_with(
+            b"1.2.840.10008.1.2\0",
+            &[0x02, 0, 0x13, 0, b'S', b'H', 2, 0, b'A', b' '],
+        );
+        let e = scan(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("(0002,0013)") && e.contains(&format!("declares {} bytes", 0x0002_4853)),
+            "{e}"
+        );
+        // no group length first
+        let (_d, p) = file(&[]);
+        let mut b = std::fs::read(&p).unwrap();
+        b[134..136].copy_from_slice(&[0x01, 0x00]);
+        std::fs::write(&p, &b).unwrap();
+        let e = scan(&p).unwrap_err().to_string();
+        assert!(e.contains("expected its group length (0002,0000)"), "{e}");
+    }
+
+    #[test]
+    fn nesting_is_bounded() {
+        let mut b = Vec::new();
+        for _ in 0..40 {
+            b.extend([
+                0x08, 0x00, 0x40, 0x11, b'S', b'Q', 0, 0, 0xFF, 0xFF, 0xFF, 0xFF,
+            ]);
+            b.extend([0xFE, 0xFF, 0x00, 0xE0, 0xFF, 0xFF, 0xFF, 0xFF]);
+        }
+        let (_d, p) = file(&b);
+        let e = scan(&p).unwrap_err().to_string();
+        assert!(e.contains("nested deeper than 32"), "{e}");
     }
 }
