@@ -22,6 +22,10 @@ struct Measured {
 }
 
 #[cfg(unix)]
+#[expect(
+    clippy::zombie_processes,
+    reason = "the child is reaped by wait4, which std cannot see"
+)]
 fn measured(dir: &Path, args: &[&str]) -> Measured {
     use std::io::Read;
     use std::process::{Command, Stdio};

@@ -139,6 +139,9 @@ const KEYS: &[&str] = &[
     "Comment",
 ];
 
+/// A geometry key found in a header: its name, its line and its numbers.
+type Synonym<'a> = (&'a str, usize, Vec<f64>);
+
 impl Entries {
     /// The entry of the first of `names` present.
     fn get(&self, names: &[&str]) -> Option<(&str, &Entry)> {
@@ -156,7 +159,7 @@ impl Entries {
         &self,
         synonyms: &[&'a str],
         count: usize,
-    ) -> Result<Vec<(&'a str, usize, Vec<f64>)>, VolumeError> {
+    ) -> Result<Vec<Synonym<'a>>, VolumeError> {
         let mut found = Vec::new();
         for &name in synonyms {
             if let Some(v) = self.numbers(&[name], count)? {
