@@ -25,6 +25,7 @@ mod mapping;
 mod memory;
 mod nrrd;
 mod output_folder;
+mod overflow;
 mod overlay;
 mod presets;
 mod resume_trust;

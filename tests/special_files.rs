@@ -258,9 +258,10 @@ fn header_parsing_is_linear_in_the_number_of_pairs() {
     // 8x the lines: 11x the time on a quiet machine (the larger header's maps and
     // strings outgrow the caches), where quadratic parsing takes 64x; half of that
     // leaves room for a noisy one (4x the lines once took 9.5x the time while two
-    // builds ran beside the test)
+    // builds ran beside the test); times of a few milliseconds are noise, so the
+    // ratio is taken against at least 10 ms
     assert!(
-        large.as_secs_f64() <= 32.0 * small.as_secs_f64().max(0.001),
+        large.as_secs_f64() <= 32.0 * small.as_secs_f64().max(0.010),
         "10,000 pairs: {small:?}, 80,000 pairs: {large:?}"
     );
 }

@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::ExitCode;
 
-use anyhow::{anyhow, Context};
+use anyhow::Context;
 
 use volcast::histogram::{self, plot, Options, Overlays};
 use volcast::volume::{Limits, VolumeSource};
@@ -26,8 +26,7 @@ pub fn run(a: HistogramArgs) -> anyhow::Result<ExitCode> {
     let name = file_name(&volume.header.source);
     let norm = match &scene {
         Some(s) => volcast::pipeline::value_window(&s.volume, &s.path, &volume)?,
-        None => volcast::pipeline::data_window(&volume)
-            .ok_or_else(|| anyhow!("the volume {name} has no finite values to count"))?,
+        None => volcast::pipeline::data_window(&volume)?,
     };
     let opts = Options {
         bins: usize::from(a.bins),

@@ -72,25 +72,38 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
             human_bytes(h.data_bytes())
         )?,
     }
-    writeln!(s, "spacing    {} {} {}", sp[0], sp[1], sp[2])?;
+    writeln!(s, "spacing    {} {} {}", num(sp[0]), num(sp[1]), num(sp[2]))?;
     let o = h.geometry.origin;
-    writeln!(s, "origin     {} {} {}", o.x, o.y, o.z)?;
+    writeln!(s, "origin     {} {} {}", num(o.x), num(o.y), num(o.z))?;
     let ax = h.geometry.axes;
     writeln!(
         s,
         "axes       ({}, {}, {}) ({}, {}, {}) ({}, {}, {})",
-        ax[0].x, ax[0].y, ax[0].z, ax[1].x, ax[1].y, ax[1].z, ax[2].x, ax[2].y, ax[2].z
+        num(ax[0].x),
+        num(ax[0].y),
+        num(ax[0].z),
+        num(ax[1].x),
+        num(ax[1].y),
+        num(ax[1].z),
+        num(ax[2].x),
+        num(ax[2].y),
+        num(ax[2].z)
     )?;
     writeln!(
         s,
-        "range      {} .. {} (mean {:.6})",
-        stats.min, stats.max, stats.mean
+        "range      {} .. {} (mean {})",
+        num(stats.min),
+        num(stats.max),
+        fixed6(stats.mean)
     )?;
     if !h.rescale.is_identity() {
         writeln!(
             s,
             "values     {} .. {} (= {} * stored + {}: the units of windows and of units = \"data\")",
-            value_range[0], value_range[1], h.rescale.slope, h.rescale.intercept
+            num(value_range[0]),
+            num(value_range[1]),
+            num(h.rescale.slope),
+            num(h.rescale.intercept)
         )?;
     }
     if stats.non_finite > 0 {
@@ -102,10 +115,10 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
     }
     writeln!(
         s,
-        "percentile 1%: {:.6}  50%: {:.6}  99%: {:.6} (histogram bin centres)",
-        q(0.01),
-        q(0.5),
-        q(0.99)
+        "percentile 1%: {}  50%: {}  99%: {} (histogram bin centres)",
+        fixed6(q(0.01)),
+        fixed6(q(0.5)),
+        fixed6(q(0.99))
     )?;
     writeln!(s, "histogram  {}", sparkline(&stats.histogram))?;
     for (k, v) in &h.fields {
@@ -113,6 +126,26 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
     }
     super::print(&s)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// `x` as Rust prints it (the shortest form that reads back), in exponent form
+/// where that would be a long run of zeros.
+fn num(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-6..1e15).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// `x` with six decimals, in exponent form (seven digits) where that would be a
+/// long run of digits or zeros.
+fn fixed6(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-3..1e15).contains(&x.abs()) {
+        format!("{x:.6}")
+    } else {
+        format!("{x:.6e}")
+    }
 }
 
 fn finite_or_null(x: f64) -> serde_json::Value {

@@ -230,8 +230,42 @@ impl Plan {
             samples_estimate: 0.0,
             fit_threshold: fit_threshold(scene),
         };
+        plan.check_views().map_err(|message| Error::Plan {
+            scene: scene.path.clone(),
+            message,
+        })?;
         plan.estimate(scene, header);
         Ok(plan)
+    }
+
+    /// Refuses views the renderer cannot compute: it marches in f32, so every eye
+    /// position, direction and image extent must be finite there, and the extent
+    /// not so small that it vanishes (a camera far beyond the volume, or a zoom
+    /// near the f64 limits). Checked for the frames this run renders, with the
+    /// zoom `fit` finds checked again once it is known.
+    pub(crate) fn check_views(&self) -> Result<(), String> {
+        let f32_ok = |x: f64| (x as f32).is_finite();
+        for &k in &self.frame_list {
+            for &e in self.views.eyes() {
+                let v = self
+                    .views
+                    .view(self.views.key(k, e), self.width, self.height, self.sphere);
+                let vectors = [v.eye, v.forward, v.right, v.up];
+                let finite = vectors.iter().all(|a| a.to_array().into_iter().all(f32_ok))
+                    && [v.distance, v.shift].into_iter().all(f32_ok);
+                let extent = [v.half_width, v.half_height]
+                    .into_iter()
+                    .all(|x| (x as f32).is_normal());
+                if !(finite && extent) {
+                    let eye = v.eye.to_array().map(|x| format!("{x:e}")).join(", ");
+                    return Err(format!(
+                        "frame {k}: the camera cannot be rendered: its eye is at [{eye}] and its image {:e} wide (half width), beyond what the renderer computes in (32-bit floats: magnitudes from about 1e-38 to 3.4e38): check [camera] target, distance and zoom, and the keyframes",
+                        v.half_width
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Fills in the estimates: memory, item by item, and samples.

@@ -41,6 +41,10 @@ pub(super) fn fit(plan: &Plan, volume: &Volume, norm: Normalize) -> Result<Optio
     };
     let mut fitted = plan.clone();
     fitted.views = fitted.views.with_zoom(z);
+    fitted.check_views().map_err(|message| Error::Plan {
+        scene: plan.scene.file.clone(),
+        message: format!("[camera] zoom = \"fit\" ({z:e}): {message}"),
+    })?;
     Ok(Some(Fitted {
         plan: fitted,
         note: format!("zoom = \"fit\": {z:.4}, framing the voxels at or above {t:.4} (normalised)"),

@@ -98,6 +98,15 @@ impl Normalize {
         }
     }
 
+    /// The map for `[lo, hi]` when it can be computed: both ends finite, and the
+    /// width and its reciprocal finite and non-zero (`[-1e308, 1e308]` is 2e308
+    /// wide, which no f64 holds).
+    pub fn checked(lo: f64, hi: f64) -> Option<Normalize> {
+        let scale = 1.0 / (hi - lo);
+        (lo.is_finite() && hi.is_finite() && scale.is_finite() && scale != 0.0)
+            .then_some(Normalize { lo, scale })
+    }
+
     /// The window's lower end and `1 / (hi - lo)`.
     pub fn lo_scale(&self) -> (f64, f64) {
         (self.lo, self.scale)

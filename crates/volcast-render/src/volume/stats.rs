@@ -42,11 +42,17 @@ impl Stats {
         }
         let target = (q.clamp(0.0, 1.0) * total as f64).ceil().max(1.0) as u64;
         let mut acc = 0;
-        let width = (self.max - self.min) / HISTOGRAM_BINS as f64;
+        // (in halves where the range is wider than an f64 holds, as it was binned)
+        let half = if (self.max - self.min).is_finite() {
+            1.0
+        } else {
+            0.5
+        };
+        let width = (self.max * half - self.min * half) / HISTOGRAM_BINS as f64;
         for (b, &c) in self.histogram.iter().enumerate() {
             acc += c;
             if acc >= target {
-                return self.min + width * (b as f64 + 0.5);
+                return (self.min * half + width * (b as f64 + 0.5)) / half;
             }
         }
         self.max
@@ -125,6 +131,21 @@ fn acc_small_int<T: Voxel>(c: Voxels<'_, T>) -> Acc {
     }
 }
 
+/// The mean of the finite values of `v` (`finite` of them) when their plain sum
+/// overflows: summed scaled by 2^-64 (exact, and tiny values no longer matter),
+/// which cannot overflow for fewer than 2^63 finite values.
+fn scaled_mean<T: Voxel>(v: Voxels<'_, T>, finite: usize) -> f64 {
+    const DOWN: f64 = 1.0 / 18_446_744_073_709_551_616.0; // 2^-64
+    let sums = map_chunks(v, &|c| {
+        c.iter()
+            .map(|x| x.to_f64())
+            .filter(|x| x.is_finite())
+            .map(|x| x * DOWN)
+            .sum::<f64>()
+    });
+    sums.iter().sum::<f64>() / finite as f64 / DOWN
+}
+
 fn stats_of<T: Voxel>(v: Voxels<'_, T>, small_int_path: bool) -> Stats {
     let small_int = small_int_path && T::LUT_SIZE > 0;
     let parts: Vec<Acc> = map_chunks(v, &|c| {
@@ -153,12 +174,15 @@ fn stats_of<T: Voxel>(v: Voxels<'_, T>, small_int_path: bool) -> Stats {
         };
     }
     let (lo, hi) = (t.min, t.max);
+    // a range wider than an f64 holds (values near the f64 limits) is binned in
+    // halves, which no finite data overflows
+    let half = if (hi - lo).is_finite() { 1.0 } else { 0.5 };
     let scale = if hi > lo {
-        HISTOGRAM_BINS as f64 / (hi - lo)
+        HISTOGRAM_BINS as f64 / (hi * half - lo * half)
     } else {
         0.0
     };
-    let bin = |x: f64| (((x - lo) * scale) as usize).min(HISTOGRAM_BINS - 1);
+    let bin = |x: f64| (((x * half - lo * half) * scale) as usize).min(HISTOGRAM_BINS - 1);
     // 8- and 16-bit integers: each possible value's bin, computed once
     let bins: Vec<u8> = if small_int {
         (0..T::LUT_SIZE)
@@ -191,10 +215,15 @@ fn stats_of<T: Voxel>(v: Voxels<'_, T>, small_int_path: bool) -> Stats {
     for h in parts {
         histogram.iter_mut().zip(h).for_each(|(x, y)| *x += y);
     }
+    let mean = if t.sum.is_finite() {
+        t.sum / t.finite as f64
+    } else {
+        scaled_mean(v, t.finite)
+    };
     Stats {
         min: lo,
         max: hi,
-        mean: t.sum / t.finite as f64,
+        mean,
         finite: t.finite,
         non_finite: t.non_finite,
         histogram,
@@ -232,5 +261,24 @@ mod tests {
         both(&[i16::MIN, i16::MAX]);
         both(&[7u8; 5]);
         both::<u16>(&[]);
+    }
+
+    #[test]
+    fn values_near_the_f64_limits_do_not_overflow() {
+        // three quarters at the top, a quarter at the bottom: the mean is half the
+        // top (to rounding), the median the top bin (whose centre lies within a bin's width of it)
+        let m = f64::MAX;
+        let s = Stats::of(&VolumeData::F64(vec![m, m, m, -m]));
+        assert_eq!((s.min, s.max), (-m, m));
+        assert!((s.mean - m / 2.0).abs() <= 1e-15 * m, "{:e}", s.mean);
+        let (q50, q0) = (s.quantile(0.5), s.quantile(0.0));
+        let bin = m / HISTOGRAM_BINS as f64 * 2.0;
+        assert!(q50.is_finite() && (m - q50) <= bin, "{q50:e}");
+        assert!(q0.is_finite() && (q0 + m) <= bin, "{q0:e}");
+        assert_eq!(s.histogram[0], 1);
+        assert_eq!(s.histogram[HISTOGRAM_BINS - 1], 3);
+        // finite sums keep the plain arithmetic
+        let t = Stats::of(&VolumeData::F64(vec![1e300, 3e300]));
+        assert_eq!(t.mean, 2e300);
     }
 }

@@ -85,7 +85,7 @@ impl Resolver<'_> {
                 continue;
             }
             let frame = n as f64;
-            let angle = |x: f64| x.is_finite() && x.abs() <= 1e6;
+            let angle = |x: f64| x.is_finite() && x.abs() <= super::view::MAX_ANGLE;
             let checks: [CameraCheck; 4] = [
                 ("azimuth", &v.azimuth, &angle, "an azimuth in degrees"),
                 (

@@ -259,7 +259,7 @@ impl Resolver<'_> {
             Some(s) => {
                 self.err(
                     s.span(),
-                    format!("{key} = {}: expected {expected}", s.get_ref()),
+                    format!("{key} = {}: expected {expected}", shown(*s.get_ref())),
                 );
                 default
             }
@@ -295,12 +295,23 @@ impl Resolver<'_> {
     fn window(&mut self, key: &str, v: &Sp<[f64; 2]>) -> Option<[f64; 2]> {
         let s = v.as_ref()?;
         let [lo, hi] = *s.get_ref();
-        if lo.is_finite() && hi.is_finite() && lo < hi {
+        let inverse = 1.0 / (hi - lo);
+        if lo.is_finite() && hi.is_finite() && lo < hi && inverse.is_finite() && inverse != 0.0 {
             Some([lo, hi])
+        } else if lo.is_finite() && hi.is_finite() && lo < hi {
+            self.err(
+                s.span(),
+                format!("{key} = [{}, {}]: its width high - low overflows an f64 (or its inverse does): expected a narrower window", shown(lo), shown(hi)),
+            );
+            None
         } else {
             self.err(
                 s.span(),
-                format!("{key} = [{lo}, {hi}]: expected [low, high] with low < high"),
+                format!(
+                    "{key} = [{}, {}]: expected [low, high] with low < high",
+                    shown(lo),
+                    shown(hi)
+                ),
             );
             None
         }
@@ -327,7 +338,7 @@ impl Resolver<'_> {
                 format!("a value of the volume in its window [{lo}, {hi}] (units = \"data\")")
             }
         };
-        self.err(span, format!("{key} = {x}: expected {expected}"));
+        self.err(span, format!("{key} = {}: expected {expected}", shown(x)));
         None
     }
 
@@ -348,5 +359,15 @@ impl Resolver<'_> {
                 self.err(span.clone(), format!("`{k}` is not used {what}"));
             }
         }
+    }
+}
+
+/// A number of the scene as a message quotes it: as written for everyday
+/// magnitudes, in exponent form where that would be a long run of digits.
+pub(crate) fn shown(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-6..1e15).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
     }
 }

@@ -21,6 +21,10 @@ use crate::scene::{
 /// Largest image side accepted.
 const MAX_IMAGE_SIDE: i64 = 32768;
 
+/// The largest azimuth or sweep, in degrees: far beyond any path (2,777 turns),
+/// and small enough that every frame's angle is finite and exact to well below a
+/// millionth of a degree.
+pub(super) const MAX_ANGLE: f64 = 1e6;
 impl Resolver<'_> {
     pub(super) fn camera(&mut self, t: Option<&Spanned<CameraTable>>) -> Camera {
         let mut cam = Camera {
@@ -70,8 +74,8 @@ impl Resolver<'_> {
             "azimuth",
             &c.azimuth,
             0.0,
-            |_| true,
-            "a finite number of degrees",
+            |x| x.abs() <= MAX_ANGLE,
+            "degrees from -1000000 to 1000000",
         );
         cam.elevation_deg = self.number(
             "elevation",
@@ -155,8 +159,8 @@ impl Resolver<'_> {
             &v.degrees,
             // a rock swings 30 degrees unless told otherwise
             if path == 1 { 30.0 } else { 360.0 },
-            |_| true,
-            "a finite number of degrees",
+            |x| x.abs() <= MAX_ANGLE,
+            "degrees from -1000000 to 1000000",
         );
         o.path = match path {
             1 => OrbitPath::Rock,
