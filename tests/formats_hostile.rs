@@ -4,61 +4,12 @@
 //! synonyms read as SimpleITK reads them.
 
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use crate::util::root;
+use crate::util::{measured, root};
 
 fn fixture(name: &str) -> PathBuf {
     root().join("tests/fixtures/formats").join(name)
-}
-
-/// How a run of the volcast binary ended, with its wall time and peak resident memory.
-struct Measured {
-    code: Option<i32>,
-    stderr: String,
-    elapsed: Duration,
-    /// Peak resident set of the child in bytes (`ru_maxrss` from `wait4`).
-    peak_rss: u64,
-}
-
-#[cfg(unix)]
-#[expect(
-    clippy::zombie_processes,
-    reason = "the child is reaped by wait4, which std cannot see"
-)]
-fn measured(dir: &Path, args: &[&str]) -> Measured {
-    use std::io::Read;
-    use std::process::{Command, Stdio};
-    let start = Instant::now();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_volcast"))
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut pipe = child.stderr.take().unwrap();
-    let reader = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = pipe.read_to_string(&mut s);
-        s
-    });
-    let mut status = 0;
-    // SAFETY: an all-zero rusage is valid; wait4 reaps our own child, which std
-    // never waits for afterwards (the Child is only dropped).
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    let pid = child.id() as libc::pid_t;
-    let r = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
-    assert_eq!(r, pid, "wait4: {}", std::io::Error::last_os_error());
-    let elapsed = start.elapsed();
-    let code = libc::WIFEXITED(status).then(|| libc::WEXITSTATUS(status));
-    Measured {
-        code,
-        stderr: reader.join().unwrap(),
-        elapsed,
-        peak_rss: usage.ru_maxrss as u64 * 1024,
-    }
 }
 
 /// The bytes of a fixture slice with `insert` placed at the start of its data set

@@ -24,6 +24,7 @@ mod keyframes;
 mod mapping;
 mod memory;
 mod nrrd;
+mod one_scene_per_folder;
 mod output_folder;
 mod overflow;
 mod overlay;

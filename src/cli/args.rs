@@ -168,6 +168,12 @@ pub struct RenderArgs {
     /// anything is). For the safety-net job after a Slurm array.
     #[arg(long, conflicts_with_all = ["shard", "frames"])]
     pub finish_only: bool,
+    /// Render into an output folder whose manifest belongs to another scene (another
+    /// scene file, an edited scene, another size, volume or volcast version). Without
+    /// it such a run is refused, so that two scenes never mix their images in one
+    /// folder; with it, this scene's images replace the other's where names coincide
+    #[arg(long)]
+    pub force: bool,
     /// No progress bar and no summary (errors are still printed).
     #[arg(long, short)]
     pub quiet: bool,

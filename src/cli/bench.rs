@@ -19,6 +19,7 @@ pub fn accuracy(a: AccuracyArgs) -> anyhow::Result<ExitCode> {
     if let Some(t) = a.threads {
         command += &format!(" --threads {t}");
     }
+    bench::check_writable(&a.out, &["images"])?;
     let report = with_threads(a.threads.map(usize::from), || {
         let mut last = usize::MAX;
         bench::accuracy(&opts, &command, &mut |done, total| {
@@ -49,6 +50,9 @@ pub fn speed(a: SpeedArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(t) = a.threads {
         command += &format!(" --threads {t}");
+    }
+    if let Some(dir) = &a.out {
+        bench::check_writable(dir, &[])?;
     }
     let report = bench::speed(&opts, &command, &mut |line| eprintln!("bench: {line}"))?;
     println!("{}", report.markdown());

@@ -82,6 +82,7 @@ impl Progress for Bar {
 pub fn run(a: RenderArgs) -> anyhow::Result<ExitCode> {
     let (scene, mut opts, limits) = prepare(&a.scene)?;
     opts.finish_only = a.finish_only;
+    opts.force = a.force;
     if !a.quiet {
         for w in &scene.warnings {
             say!("volcast: warning: {w}");

@@ -65,6 +65,9 @@ pub struct RunOptions {
     /// Write the turntable page `index.html` even if the scene has no `[viewer]`
     /// (`--viewer`).
     pub viewer: bool,
+    /// Render into an output folder whose manifest is of another scene (`--force`);
+    /// without it such a run is refused before anything is written.
+    pub force: bool,
 }
 
 /// The plan of a run.
@@ -323,7 +326,7 @@ impl Plan {
         ));
         if self.preview_bytes > 0 {
             memory.push((
-                "grey-window previews of every view".into(),
+                "grey-window previews (one per thread) and every view's range".into(),
                 self.preview_bytes,
             ));
         }
@@ -429,8 +432,11 @@ impl Plan {
         }));
         self.preview_bytes = if self.auto_window.iter().any(|&a| a) {
             let (w, h) = self.preview;
+            // a preview per thread, and each view of the orbit's key and range
             let orbit_views = self.views.needed(0..scene.orbit.frames) as u64;
-            ((w * h) as u64).saturating_mul(4 * (orbit_views + threads))
+            ((w * h) as u64)
+                .saturating_mul(4 * threads)
+                .saturating_add(64 * orbit_views)
         } else {
             0
         };

@@ -24,7 +24,8 @@ use std::fmt::Write as _;
 use glam::DVec3;
 
 use crate::render::View;
-use crate::scene::{Camera, OrbitPath, Scene, Separation, StereoMethod};
+use crate::scene::camera_on_path;
+use crate::scene::{Camera, Keyframes, Orbit, OrbitPath, Scene, Separation, StereoMethod};
 
 /// Which eye an image belongs to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -74,9 +75,11 @@ pub struct Views {
     pub share: bool,
     /// The scene's camera: what the circle turns by the orbit offset.
     camera: Camera,
-    /// Each frame's camera on a path other than the circle (rock, elevation,
-    /// keyframes).
-    cameras: Option<Vec<Camera>>,
+    /// The path other than the circle (rock, elevation, keyframes) that places
+    /// each frame's camera, computed per frame from `camera`.
+    path: Option<(Orbit, Option<Keyframes>)>,
+    /// The zoom `fit` found, which replaces every frame's (keyframes included).
+    zoom: Option<f64>,
 }
 
 /// A whole number `n` when `x` is within a relative 1e-9 of it (and not zero).
@@ -99,17 +102,17 @@ impl Views {
                 StereoMethod::Parallel(sep) => Placement::Parallel(sep),
             },
         };
-        let cameras = (scene.orbit.path != OrbitPath::Circle)
-            .then(|| (0..frames).map(|k| scene.camera_at(k)).collect::<Vec<_>>());
+        let path =
+            (scene.orbit.path != OrbitPath::Circle).then(|| (scene.orbit, scene.keyframes.clone()));
         let reuse = match (placement, &scene.stereo) {
             // views coincide only on the circle
-            _ if cameras.is_some() => None,
+            _ if path.is_some() => None,
             (Placement::ToeIn { .. }, Some(s)) if degrees != 0.0 => {
                 whole(s.angle_deg * frames as f64 / degrees)
             }
             _ => None,
         };
-        let period = if cameras.is_some() {
+        let period = if path.is_some() {
             None
         } else if degrees == 0.0 {
             Some(1)
@@ -124,7 +127,8 @@ impl Views {
             period,
             share,
             camera: scene.camera,
-            cameras,
+            path,
+            zoom: None,
         }
     }
 
@@ -133,9 +137,7 @@ impl Views {
     /// is what the scene with that zoom would give).
     pub fn with_zoom(mut self, zoom: f64) -> Views {
         self.camera.zoom = zoom;
-        for c in self.cameras.iter_mut().flatten() {
-            c.zoom = zoom;
-        }
+        self.zoom = Some(zoom);
         self
     }
 
@@ -201,7 +203,7 @@ impl Views {
     /// The azimuth offset of a view from its camera (the orbit position on the
     /// circle, plus the toe-in turn).
     pub fn azimuth_offset_deg(&self, key: ViewKey) -> f64 {
-        let base = if self.cameras.is_some() {
+        let base = if self.path.is_some() {
             0.0
         } else {
             self.orbit_offset_deg(key.position)
@@ -215,11 +217,23 @@ impl Views {
 
     /// The camera a view turns by [`Views::azimuth_offset_deg`]: the scene's on
     /// the circle, the frame's on other paths.
-    fn camera_of(&self, key: ViewKey) -> &Camera {
-        match &self.cameras {
-            Some(c) => &c[key.position as usize],
-            None => &self.camera,
+    fn camera_of(&self, key: ViewKey) -> Camera {
+        match &self.path {
+            Some(_) => self.frame_camera(key.position as usize),
+            None => self.camera,
         }
+    }
+
+    /// Frame `k`'s camera on a path other than the circle.
+    fn frame_camera(&self, k: usize) -> Camera {
+        let Some((orbit, keyframes)) = &self.path else {
+            return self.camera;
+        };
+        let mut c = camera_on_path(self.camera, orbit, keyframes.as_ref(), k);
+        if let Some(z) = self.zoom {
+            c.zoom = z;
+        }
+        c
     }
 
     /// The azimuth and elevation (degrees) a view is seen from.
@@ -235,8 +249,11 @@ impl Views {
     /// turn: what labels and NRRD files name the frame by (the same values as
     /// `Scene::camera_at`, not reduced by the orbit's period).
     pub fn frame_angles_deg(&self, k: usize) -> (f64, f64) {
-        match &self.cameras {
-            Some(c) => (c[k].azimuth_deg, c[k].elevation_deg),
+        match &self.path {
+            Some(_) => {
+                let c = self.frame_camera(k);
+                (c.azimuth_deg, c.elevation_deg)
+            }
             None => (
                 self.camera.azimuth_deg + self.orbit_offset_deg(k as i64),
                 self.camera.elevation_deg,
@@ -247,7 +264,7 @@ impl Views {
     /// The camera pose and image plane of a view.
     pub fn view(&self, key: ViewKey, width: usize, height: usize, sphere: (DVec3, f64)) -> View {
         let view = View::new(
-            self.camera_of(key),
+            &self.camera_of(key),
             self.azimuth_offset_deg(key),
             width,
             height,
@@ -275,7 +292,7 @@ impl Views {
         let needed = self.needed(frames.iter().copied());
         let mut s = format!("{needed} to render per pass ({images} eye images");
         match (self.placement, self.reuse, self.share) {
-            (Placement::ToeIn { .. }, None, true) if self.cameras.is_some() => {
+            (Placement::ToeIn { .. }, None, true) if self.path.is_some() => {
                 s.push_str("; no reuse: views coincide only on the circle path")
             }
             (Placement::ToeIn { .. }, Some(m), true) => {

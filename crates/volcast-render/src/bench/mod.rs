@@ -226,6 +226,54 @@ fn machine() -> String {
     format!("{cpus} CPUs (nproc), {model}")
 }
 
+/// Checks, before a bench spends minutes measuring, that its files can be written
+/// into `dir` (and its `subfolders`): creates the folders and a probe file there,
+/// and removes the probe. On failure the folders it created are removed again.
+pub fn check_writable(dir: &Path, subfolders: &[&str]) -> Result<(), BenchError> {
+    let mut created = Vec::new();
+    let mut result = Ok(());
+    for d in std::iter::once(dir.to_path_buf()).chain(subfolders.iter().map(|s| dir.join(s))) {
+        let mut missing: Vec<PathBuf> = d
+            .ancestors()
+            .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+            .map(Path::to_path_buf)
+            .collect();
+        missing.reverse();
+        let probe = d.join(format!(".volcast-bench-probe-{}", std::process::id()));
+        let step = std::fs::create_dir_all(&d)
+            .map_err(|source| BenchError::Write {
+                path: d.clone(),
+                source,
+            })
+            .and_then(|()| {
+                created.extend(missing);
+                std::fs::OpenOptions::new()
+                    .write(true)
+                    .create_new(true)
+                    .open(&probe)
+                    .map_err(|source| BenchError::Write {
+                        path: d.clone(),
+                        source,
+                    })
+            });
+        match step {
+            Ok(_) => {
+                let _ = std::fs::remove_file(&probe);
+            }
+            Err(e) => {
+                result = Err(e);
+                break;
+            }
+        }
+    }
+    if result.is_err() {
+        for d in created.iter().rev() {
+            let _ = std::fs::remove_dir(d);
+        }
+    }
+    result
+}
+
 fn write_file(path: &Path, bytes: &[u8]) -> Result<(), BenchError> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|source| BenchError::Write {

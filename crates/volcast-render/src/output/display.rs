@@ -37,15 +37,25 @@ impl Window {
     pub fn of_films<'a>(films: impl IntoIterator<Item = &'a Film>) -> Window {
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for f in films {
-            for px in f.data.chunks_exact(f.channels) {
-                let v = px[0] as f64;
-                if v.is_finite() {
-                    lo = lo.min(v);
-                    hi = hi.max(v);
-                }
-            }
+            let (a, b) = Window::finite_range(f);
+            lo = lo.min(a);
+            hi = hi.max(b);
         }
         Window::from_range(lo, hi)
+    }
+
+    /// The smallest and largest finite value of `film` (channel 0); `(inf, -inf)`
+    /// when none is finite. Ranges combine by min and max, in any order.
+    pub fn finite_range(film: &Film) -> (f64, f64) {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for px in film.data.chunks_exact(film.channels) {
+            let v = px[0] as f64;
+            if v.is_finite() {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+        (lo, hi)
     }
 
     /// A window from a value range, made valid as in [`Window::of_films`].

@@ -23,7 +23,7 @@
 //! size and SHA-256. `manifest.json` also records each animation's size and SHA-256
 //! and the frames it was made from, so a damaged or stale animation is rebuilt.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -209,6 +209,36 @@ fn existing_records(out: &Path) -> Result<Option<Folder>, Error> {
             source,
         }),
     }
+}
+
+/// The (pass, frame) of every file in `out`'s records folder named as a record
+/// is named ([`record_name`]), by pass: which records there are to read.
+fn record_frames(out: &Path) -> Result<HashMap<String, BTreeSet<usize>>, Error> {
+    let mut found: HashMap<String, BTreeSet<usize>> = HashMap::new();
+    if existing_records(out)?.is_none() {
+        return Ok(found);
+    }
+    let dir = out.join(RECORDS);
+    let entries = std::fs::read_dir(&dir).map_err(|source| Error::Read {
+        path: dir.clone(),
+        source,
+    })?;
+    for e in entries {
+        let e = e.map_err(|source| Error::Read {
+            path: dir.clone(),
+            source,
+        })?;
+        let name = e.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let parsed = name
+            .strip_suffix(".json")
+            .and_then(|s| s.rsplit_once('_'))
+            .and_then(|(pass, k)| Some((pass, k.parse::<usize>().ok()?)));
+        if let Some((pass, k)) = parsed.filter(|&(p, k)| record_name(p, k) == name) {
+            found.entry(pass.to_string()).or_default().insert(k);
+        }
+    }
+    Ok(found)
 }
 
 /// The file name of the record of (`pass`, `frame`).
@@ -906,10 +936,20 @@ fn collect(out: &Path, head: &ManifestHead) -> Result<(Vec<FrameRecord>, Manifes
         total: outputs.passes.len() * outputs.frames,
         ..Default::default()
     };
+    // only the records that exist are read: a long orbit with few frames rendered
+    // costs one listing, not a file lookup per frame
+    let present = record_frames(out)?;
     let keys: Vec<(&str, usize)> = outputs
         .passes
         .iter()
-        .flat_map(|p| (0..outputs.frames).map(move |k| (p.name.as_str(), k)))
+        .flat_map(|p| {
+            let frames = present.get(p.name.as_str());
+            frames
+                .into_iter()
+                .flatten()
+                .filter(|&&k| k < outputs.frames)
+                .map(move |&k| (p.name.as_str(), k))
+        })
         .collect();
     // every file of every record is checked (hashed, unless `known` has it): in parallel
     let found: Vec<Result<Option<FrameRecord>, Error>> = {
@@ -928,18 +968,25 @@ fn collect(out: &Path, head: &ManifestHead) -> Result<(Vec<FrameRecord>, Manifes
             .collect()
     };
     let mut records = Vec::new();
+    let mut good: HashMap<&str, BTreeSet<usize>> = HashMap::new();
     for (r, &(pass, k)) in found.into_iter().zip(&keys) {
         match r {
             Ok(Some(r)) => {
                 status.done += 1;
                 records.push(r);
+                good.entry(pass).or_default().insert(k);
             }
-            Ok(None) => status.missing.push((pass.to_string(), k)),
-            Err(e) => {
-                status.unreadable.push(e.to_string());
-                status.missing.push((pass.to_string(), k));
-            }
+            Ok(None) => {}
+            Err(e) => status.unreadable.push(e.to_string()),
         }
+    }
+    for p in &outputs.passes {
+        let good = good.get(p.name.as_str());
+        status.missing.extend(
+            (0..outputs.frames)
+                .filter(|k| !good.is_some_and(|g| g.contains(k)))
+                .map(|k| (p.name.clone(), k)),
+        );
     }
     let mut counts: Vec<usize> = records
         .iter()

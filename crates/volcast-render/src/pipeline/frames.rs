@@ -12,7 +12,7 @@ use super::{CacheKey, Emit, EyeView, FrameViews, Rendered, Summary};
 use crate::error::Error;
 use crate::output::display::Window;
 use crate::plan::Plan;
-use crate::render::{Film, ImageKind, RenderView, Resources, View};
+use crate::render::{ImageKind, RenderView, Resources, View};
 use crate::sample::Normalize;
 use crate::scene::Format;
 use crate::views::Eye;
@@ -231,8 +231,9 @@ fn grey_windows(plan: &Plan, resources: &Resources) -> Vec<Option<Window>> {
                         views.eyes().iter().map(move |&e| (v, views.key(k, e)))
                     })
                     .collect();
-                // one variant at a time (previews are of intensity passes: no tables)
-                let mut films: Vec<Film> = Vec::with_capacity(orbit_views.len());
+                // one variant at a time (previews are of intensity passes: no tables);
+                // each preview is kept only as its range of finite values
+                let mut ranges: Vec<(f64, f64)> = Vec::with_capacity(orbit_views.len());
                 let variants: BTreeSet<usize> = orbit_views.iter().map(|&(v, _)| v).collect();
                 for v in variants {
                     let rt = plan.variants[v].prepare(resources);
@@ -241,13 +242,15 @@ fn grey_windows(plan: &Plan, resources: &Resources) -> Vec<Option<Window>> {
                         .filter(|&&(u, _)| u == v)
                         .map(|&(_, key)| key)
                         .collect();
-                    films.par_extend(
-                        keys.par_iter().map(|&key| {
-                            rt.render(&view_of(plan, key, plan.preview), &plan.frame).0
-                        }),
-                    );
+                    ranges.par_extend(keys.par_iter().map(|&key| {
+                        Window::finite_range(
+                            &rt.render(&view_of(plan, key, plan.preview), &plan.frame).0,
+                        )
+                    }));
                 }
-                Some(Window::of_films(&films))
+                let lo = ranges.iter().map(|r| r.0).fold(f64::INFINITY, f64::min);
+                let hi = ranges.iter().map(|r| r.1).fold(f64::NEG_INFINITY, f64::max);
+                Some(Window::from_range(lo, hi))
             }
         })
         .collect()

@@ -28,7 +28,7 @@ use resume::{completed, create_folders, finish, jobs};
 use write::write_frame;
 
 use std::collections::HashSet;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::Error;
@@ -143,6 +143,9 @@ fn run_plan(
     }
     let mut notes = Vec::new();
     let mut known = Known::find(plan, opts, limits, &mut notes)?;
+    if !opts.force {
+        refuse_another_scene(plan, header, &known.digest, &mut notes)?;
+    }
     let jobs = jobs(plan, &known.done);
     if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
         notes.push(format!(
@@ -167,6 +170,66 @@ fn run_plan(
     summary.notes = notes;
     finish(plan, header, &known.identity, &known.digest, &mut summary)?;
     Ok(summary)
+}
+
+/// Refuses to render into a folder whose `manifest.json` records another scene
+/// file and another scene hash: two scenes would mix their images there. The same
+/// scene file edited (or at another size, with other voxels, by another volcast)
+/// renders again, replacing its images, and `notes` says so.
+fn refuse_another_scene(
+    plan: &Plan,
+    header: &VolumeHeader,
+    digest: &str,
+    notes: &mut Vec<String>,
+) -> Result<(), Error> {
+    let Some(previous) = manifest::read_manifest(&plan.out)? else {
+        return Ok(());
+    };
+    let hash = previous.get("scene_hash").and_then(|h| h.as_str());
+    if hash.is_none_or(|h| h == digest) {
+        return Ok(());
+    }
+    let text = |v: &serde_json::Value| v.as_str().map(str::to_string);
+    let file = text(&previous["scene"]["file"]).unwrap_or_default();
+    if !same_file(Path::new(&file), &plan.scene.file) {
+        return Err(Error::Plan {
+            scene: plan.scene.file.clone(),
+            message: format!(
+                "the output folder {} holds the images of another scene, {file} (its manifest's scene hash differs): render into another folder (--out), remove that one, or pass --force to render over it",
+                plan.out.display()
+            ),
+        });
+    }
+    let size = previous["render_size"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|x| x.as_u64()).collect::<Vec<_>>());
+    let version = text(&previous["volcast_version"]).unwrap_or_default();
+    let why = if text(&previous["scene"]["text"]).as_deref() != Some(plan.scene.text.as_str()) {
+        "this scene as it was before it was edited".to_string()
+    } else if size != Some(vec![plan.width as u64, plan.height as u64]) {
+        let s = size.map_or("another size".into(), |s| {
+            s.iter().map(u64::to_string).collect::<Vec<_>>().join(" x ")
+        });
+        format!("this scene at {s}")
+    } else if version != env!("CARGO_PKG_VERSION") {
+        format!("this scene rendered by volcast {version}")
+    } else {
+        format!("this scene with other voxels in {}", header.source)
+    };
+    notes.push(format!(
+        "{} held the images of {why}: the frames rendered now replace them",
+        plan.out.display()
+    ));
+    Ok(())
+}
+
+/// Whether two scene paths name one file: the same file once resolved, or, where
+/// the recorded one no longer resolves (written from another folder), the same name.
+fn same_file(recorded: &Path, now: &Path) -> bool {
+    match (recorded.canonicalize(), now.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => recorded.file_name() == now.file_name(),
+    }
 }
 
 /// What a run finds before it renders: which voxels the volume holds, the digest

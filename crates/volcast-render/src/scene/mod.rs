@@ -17,6 +17,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 pub use diag::{Diagnostic, SceneError};
+pub(crate) use path::camera_on_path;
 pub use path::{Channel, Keyframes, OrbitPath};
 
 pub use crate::mode::projection::MipOutput;

@@ -107,41 +107,7 @@ impl Scene {
     /// The camera of frame `k` on a path other than the circle (whose frames turn
     /// the scene's camera by [`super::Orbit::azimuth_offset_deg`] instead).
     pub fn camera_at(&self, k: usize) -> super::Camera {
-        let mut c = self.camera;
-        let phase = 2.0 * std::f64::consts::PI * k as f64 / self.orbit.frames as f64;
-        match self.orbit.path {
-            OrbitPath::Circle => {
-                c.azimuth_deg += self.orbit.azimuth_offset_deg(k);
-            }
-            OrbitPath::Rock => {
-                c.azimuth_deg += 0.5 * self.orbit.degrees * phase.sin();
-            }
-            OrbitPath::Elevation { lo, hi } => {
-                c.elevation_deg = lo + (hi - lo) * 0.5 * (1.0 - phase.cos());
-            }
-            OrbitPath::Keyframes => {
-                let Some(kf) = &self.keyframes else {
-                    return c;
-                };
-                let (f, s) = (k as f64, kf.smooth);
-                if let Some(ch) = &kf.azimuth {
-                    c.azimuth_deg = ch.at(f, s);
-                }
-                if let Some(ch) = &kf.elevation {
-                    c.elevation_deg = ch.at(f, s).clamp(-90.0, 90.0);
-                }
-                if let Some(ch) = &kf.zoom {
-                    c.zoom = ch.at(f, s).max(1e-6);
-                }
-                if let Some(ch) = &kf.distance {
-                    c.distance = Some(ch.at(f, s).max(1e-9));
-                }
-                if let Some([x, y, z]) = &kf.target {
-                    c.target = Some(glam::DVec3::new(x.at(f, s), y.at(f, s), z.at(f, s)));
-                }
-            }
-        }
-        c
+        camera_on_path(self.camera, &self.orbit, self.keyframes.as_ref(), k)
     }
 
     /// Pass `p`'s iso value or threshold at frame `k`, when keyframes animate it.
@@ -161,6 +127,52 @@ impl Scene {
             })
             .unwrap_or(self.clips[c].offset)
     }
+}
+
+/// The camera of frame `k` on the orbit's path, from the scene's `camera` (see
+/// [`Scene::camera_at`]): computed per frame, so that a long orbit costs nothing
+/// for the frames not rendered.
+pub(crate) fn camera_on_path(
+    camera: super::Camera,
+    orbit: &super::Orbit,
+    keyframes: Option<&Keyframes>,
+    k: usize,
+) -> super::Camera {
+    let mut c = camera;
+    let phase = 2.0 * std::f64::consts::PI * k as f64 / orbit.frames as f64;
+    match orbit.path {
+        OrbitPath::Circle => {
+            c.azimuth_deg += orbit.azimuth_offset_deg(k);
+        }
+        OrbitPath::Rock => {
+            c.azimuth_deg += 0.5 * orbit.degrees * phase.sin();
+        }
+        OrbitPath::Elevation { lo, hi } => {
+            c.elevation_deg = lo + (hi - lo) * 0.5 * (1.0 - phase.cos());
+        }
+        OrbitPath::Keyframes => {
+            let Some(kf) = keyframes else {
+                return c;
+            };
+            let (f, s) = (k as f64, kf.smooth);
+            if let Some(ch) = &kf.azimuth {
+                c.azimuth_deg = ch.at(f, s);
+            }
+            if let Some(ch) = &kf.elevation {
+                c.elevation_deg = ch.at(f, s).clamp(-90.0, 90.0);
+            }
+            if let Some(ch) = &kf.zoom {
+                c.zoom = ch.at(f, s).max(1e-6);
+            }
+            if let Some(ch) = &kf.distance {
+                c.distance = Some(ch.at(f, s).max(1e-9));
+            }
+            if let Some([x, y, z]) = &kf.target {
+                c.target = Some(glam::DVec3::new(x.at(f, s), y.at(f, s), z.at(f, s)));
+            }
+        }
+    }
+    c
 }
 
 #[cfg(test)]
