@@ -11,7 +11,9 @@
 //!                     sorted by ImagePositionPatient along the slice normal; equal
 //!                     spacing; gantry tilt refused
 //! DicomSpec::load     Limits::check (columns x rows x slices), then each slice's pixel
-//!                     data appended in order; rescale slope/intercept: the same for
+//!                     data appended in order, each value taken from bits
+//!                     HighBit+1-BitsStored ..= HighBit of its cell (PS3.5 8, sign
+//!                     extended when signed); rescale slope/intercept: the same for
 //!                     every slice -> the header's Rescale (voxels keep their type);
 //!                     different -> float32 values slope * x + intercept
 //! ```
@@ -69,6 +71,9 @@ struct Slice {
     columns: usize,
     bits_allocated: u16,
     bits_stored: u16,
+    /// The most significant bit of a value in its cell (PS3.5 8): the value is bits
+    /// `high_bit + 1 - bits_stored ..= high_bit`.
+    high_bit: u16,
     signed: bool,
     orientation: [f64; 6],
     position: DVec3,
@@ -223,6 +228,20 @@ fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError
             ))
         }
     };
+    let high_bit = match int(tags::HIGH_BIT, "HighBit (0028,0102)")? {
+        None => bits_stored - 1,
+        Some(h) if (i64::from(bits_stored) - 1..i64::from(bits_allocated)).contains(&h) => h as u16,
+        Some(h) => {
+            return Err(header_err(
+                path,
+                format!(
+                    "HighBit (0028,0102) is {h}, expected BitsStored-1 .. BitsAllocated-1 ({} to {}): the top bit of a {bits_stored}-bit value in a {bits_allocated}-bit cell",
+                    bits_stored - 1,
+                    bits_allocated - 1
+                ),
+            ))
+        }
+    };
     let signed = int(
         tags::PIXEL_REPRESENTATION,
         "PixelRepresentation (0028,0103)",
@@ -263,6 +282,7 @@ fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError
         columns,
         bits_allocated,
         bits_stored,
+        high_bit,
         signed,
         orientation: std::array::from_fn(|i| orientation[i]),
         position: DVec3::new(position[0], position[1], position[2]),
@@ -381,6 +401,7 @@ impl DicomSpec {
                 && s.columns == first.columns
                 && s.bits_allocated == first.bits_allocated
                 && s.bits_stored == first.bits_stored
+                && s.high_bit == first.high_bit
                 && s.signed == first.signed
                 && s.spacing == first.spacing
                 && s.orientation
@@ -391,7 +412,7 @@ impl DicomSpec {
                 return Err(VolumeError::Unsupported {
                     path: s.path.clone(),
                     message: format!(
-                        "its Rows, Columns, BitsAllocated, BitsStored, PixelRepresentation, PixelSpacing or ImageOrientationPatient differ from those of {}: the slices of a volume share them",
+                        "its Rows, Columns, BitsAllocated, BitsStored, HighBit, PixelRepresentation, PixelSpacing or ImageOrientationPatient differ from those of {}: the slices of a volume share them",
                         first.path.display()
                     ),
                 });
@@ -533,7 +554,7 @@ impl DicomSpec {
     }
 
     /// Reads the series: `limits` checked before allocating; the XXH3-128 of the pixel
-    /// data as stored, slice by slice in order, when `hash`.
+    /// values (unpacked from their cells), slice by slice in order, when `hash`.
     pub fn load_hashed(
         &self,
         limits: &Limits,
@@ -574,7 +595,7 @@ impl DicomSpec {
                     ),
                 });
             }
-            let bytes = masked(&bytes[..need], s, stored);
+            let bytes = unpacked(&bytes[..need], s, stored);
             if let Some(h) = &mut hasher {
                 h.update(&bytes);
             }
@@ -603,27 +624,78 @@ impl DicomSpec {
     }
 }
 
-/// The pixel bytes with the bits above BitsStored cleared (unsigned) or filled with
-/// the sign (signed), as DICOM's overlay-free reading requires.
-fn masked(bytes: &[u8], s: &Slice, ty: ScalarType) -> Vec<u8> {
+/// The values of the pixel cells: bits `HighBit + 1 - BitsStored ..= HighBit` of each
+/// cell moved down to bit 0, the bits above cleared (unsigned) or filled with the sign
+/// (signed), as PS3.5 8 lays a value out in its cell.
+fn unpacked(bytes: &[u8], s: &Slice, ty: ScalarType) -> Vec<u8> {
     let bits = u32::from(s.bits_stored);
     let size = ty.size();
+    // a value filling its cell (HighBit is then BitsStored - 1, checked on reading)
     if bits as usize == size * 8 {
         return bytes.to_vec();
     }
-    let shift = 64 - bits;
+    // HighBit to bit 63 drops the bits above the value; shifting back down by
+    // 64 - BitsStored drops those below it and extends the sign
+    let up = 63 - u32::from(s.high_bit);
+    let down = 64 - bits;
     bytes
         .chunks_exact(size)
         .flat_map(|c| {
             let mut v = [0u8; 8];
             v[..size].copy_from_slice(c);
-            let x = u64::from_le_bytes(v) << shift;
+            let x = u64::from_le_bytes(v) << up;
             let y = if s.signed {
-                ((x as i64) >> shift) as u64
+                ((x as i64) >> down) as u64
             } else {
-                x >> shift
+                x >> down
             };
             y.to_le_bytes()[..size].to_vec()
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn slice(bits_allocated: u16, bits_stored: u16, high_bit: u16, signed: bool) -> Slice {
+        Slice {
+            path: PathBuf::from("s.dcm"),
+            series: String::new(),
+            description: String::new(),
+            modality: String::new(),
+            transfer_syntax: String::new(),
+            rows: 1,
+            columns: 1,
+            bits_allocated,
+            bits_stored,
+            high_bit,
+            signed,
+            orientation: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+            position: DVec3::ZERO,
+            spacing: [1.0, 1.0],
+            rescale: Rescale::default(),
+        }
+    }
+
+    #[test]
+    fn unpacked_takes_the_bits_high_bit_ends() {
+        // 8-bit cells, 7 bits ending at bit 7: the low bit is not part of the value
+        let s = slice(8, 7, 7, false);
+        assert_eq!(unpacked(&[0xFF, 0x81], &s, ScalarType::Uint8), [0x7F, 0x40]);
+        // signed 32-bit cells, 24 bits ending at bit 27: bits 4..=27, bit 27 the sign
+        let s = slice(32, 24, 27, true);
+        let cells: Vec<u8> = [0xF800_000Fu32, 0x07FF_FFF0, 0x0000_0010]
+            .iter()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        let values: Vec<i32> = unpacked(&cells, &s, ScalarType::Int32)
+            .chunks_exact(4)
+            .map(|c| i32::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        assert_eq!(values, [-(1 << 23), (1 << 23) - 1, 1]);
+        // a value filling its cell is kept as it is
+        let s = slice(16, 16, 15, true);
+        assert_eq!(unpacked(&[1, 0x80], &s, ScalarType::Int16), [1, 0x80]);
+    }
 }
