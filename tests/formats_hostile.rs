@@ -512,3 +512,65 @@ fn high_bit_outside_the_cell_or_below_the_value_is_refused() {
         "{e}"
     );
 }
+
+fn set_ds(e: &mut Elements, tag: (u16, u16), s: &str) {
+    e.insert(tag, ("DS", text(s, b' ')));
+}
+
+const ORIENTATION: (u16, u16) = (0x0020, 0x0037);
+
+#[test]
+fn image_orientation_must_be_two_orthogonal_unit_vectors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cells = |k: usize| (0..12).map(|i| (12 * k + i) as u16).collect::<Vec<_>>();
+    // 0.95: read, it scaled the pixel spacing by 0.95
+    let e = synthetic_series(tmp.path(), "short", 3, &cells, &|_, e| {
+        set_ds(e, ORIENTATION, "0.95\\0\\0\\0\\0.95\\0")
+    })
+    .header()
+    .unwrap_err()
+    .to_string();
+    for n in [
+        "s0.dcm",
+        "ImageOrientationPatient (0020,0037)",
+        "lengths 0.95 and 0.95",
+        "expected unit vectors",
+    ] {
+        assert!(e.contains(n), "`{n}` missing from: {e}");
+    }
+    // unit vectors 84 degrees apart
+    let e = synthetic_series(tmp.path(), "skew", 3, &cells, &|_, e| {
+        set_ds(e, ORIENTATION, "1\\0\\0\\0.104528\\0.994522\\0")
+    })
+    .header()
+    .unwrap_err()
+    .to_string();
+    for n in [
+        "s0.dcm",
+        "(0020,0037)",
+        "dot product 0.1045",
+        "at right angles",
+    ] {
+        assert!(e.contains(n), "`{n}` missing from: {e}");
+    }
+    // direction cosines rounded to 6 and to 4 digits, as scanners write them, are
+    // read; the slices step 2 along the normal
+    for (name, cosines, normal) in [
+        (
+            "six",
+            "0.866025\\0.5\\0\\-0.5\\0.866025\\0",
+            [0.0, 0.0, 1.0],
+        ),
+        ("four", "1\\0\\0\\0\\0.9272\\-0.3746", [0.0, 0.3746, 0.9272]),
+    ] {
+        let h = synthetic_series(tmp.path(), name, 3, &cells, &|k, e| {
+            set_ds(e, ORIENTATION, cosines);
+            let p = normal.map(|n| format!("{}", 2.0 * k as f64 * n));
+            set_ds(e, (0x0020, 0x0032), &p.join("\\"));
+        })
+        .header()
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+        crate::assert_close!(h.geometry.axes[0].length(), 0.75, 1e-4, "{name} spacing x");
+        crate::assert_close!(h.geometry.axes[1].length(), 0.5, 1e-4, "{name} spacing y");
+    }
+}

@@ -43,6 +43,14 @@ use nrrd::{ElementSink, ReadError};
 /// Most files a series folder may hold.
 const MAX_FILES: usize = 100_000;
 
+/// How far from 1 the length of either direction of ImageOrientationPatient may be:
+/// GDCM's bound (1e-3 on the squared length), which cosines rounded to 4 digits stay
+/// inside; the spacing is scaled by that length, so it is also the spacing's error.
+const UNIT_TOLERANCE: f64 = 5e-4;
+
+/// How far from 0 the dot product of the two directions may be (GDCM's bound).
+const ORTHOGONAL_TOLERANCE: f64 = 1e-3;
+
 /// The transfer syntaxes read: uncompressed, little-endian.
 const READABLE: [(&str, &str); 2] = [
     ("1.2.840.10008.1.2", "Implicit VR Little Endian"),
@@ -127,6 +135,17 @@ fn syntax_name(uid: &str) -> String {
         || format!("{uid} (unknown)"),
         |ts| format!("{uid} ({})", ts.name()),
     )
+}
+
+/// `x` to 6 decimals, without trailing zeros.
+fn short(x: f64) -> String {
+    let s = format!("{x:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".into()
+    } else {
+        s.into()
+    }
 }
 
 fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError> {
@@ -252,6 +271,22 @@ fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError
         6,
     )?
     .ok_or_else(|| missing("ImageOrientationPatient (0020,0037)"))?;
+    let [x, y] = [0, 3].map(|i| DVec3::from_slice(&orientation[i..i + 3]));
+    let (lx, ly, dot) = (x.length(), y.length(), x.dot(y));
+    if (lx - 1.0).abs() > UNIT_TOLERANCE
+        || (ly - 1.0).abs() > UNIT_TOLERANCE
+        || dot.abs() > ORTHOGONAL_TOLERANCE
+    {
+        return Err(header_err(
+            path,
+            format!(
+                "ImageOrientationPatient (0020,0037) is {orientation:?}: its row and column directions have lengths {} and {} and dot product {}, expected unit vectors (lengths within {UNIT_TOLERANCE} of 1) at right angles (dot product within {ORTHOGONAL_TOLERANCE} of 0)",
+                short(lx),
+                short(ly),
+                short(dot)
+            ),
+        ));
+    }
     let position = floats(
         tags::IMAGE_POSITION_PATIENT,
         "ImagePositionPatient (0020,0032)",
@@ -421,14 +456,8 @@ impl DicomSpec {
         let o = first.orientation;
         let x = DVec3::new(o[0], o[1], o[2]);
         let y = DVec3::new(o[3], o[4], o[5]);
-        let normal = x.cross(y);
-        if !(normal.length() > 0.9 && x.dot(y).abs() < 1e-3) {
-            return Err(header_err(
-                &first.path,
-                format!("ImageOrientationPatient {o:?} is not two orthogonal unit vectors"),
-            ));
-        }
-        let normal = normal.normalize();
+        // every slice's directions were checked to be unit and orthogonal on reading
+        let normal = x.cross(y).normalize();
         slices.sort_by(|a, b| a.position.dot(normal).total_cmp(&b.position.dot(normal)));
         let n = slices.len();
         let step = if n > 1 {
