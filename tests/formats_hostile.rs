@@ -574,3 +574,69 @@ fn image_orientation_must_be_two_orthogonal_unit_vectors() {
         crate::assert_close!(h.geometry.axes[1].length(), 0.5, 1e-4, "{name} spacing y");
     }
 }
+#[test]
+fn a_single_slice_says_its_z_spacing_is_assumed() {
+    // no second position to measure the z spacing from: it was 1, silently; it is
+    // SliceThickness when there is one, and `info` says which
+    let tmp = tempfile::tempdir().unwrap();
+    let cells = |_| (0..12).collect::<Vec<u16>>();
+    let thick = synthetic_series(tmp.path(), "thick", 1, &cells, &|_, e| {
+        set_ds(e, (0x0018, 0x0050), "2.5")
+    });
+    let h = thick.header().unwrap();
+    crate::assert_close!(h.geometry.axes[2].length(), 2.5, 0.0, "z spacing");
+    let bare = synthetic_series(tmp.path(), "bare", 1, &cells, &|_, _| {});
+    crate::assert_close!(
+        bare.header().unwrap().geometry.axes[2].length(),
+        1.0,
+        0.0,
+        "z spacing"
+    );
+    let info = |dir: &str, json: bool| {
+        let mut args = vec!["info", dir];
+        if json {
+            args.push("--json");
+        }
+        let o = crate::util::volcast(tmp.path(), &args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8(o.stdout).unwrap()
+    };
+    let text = info("thick", false);
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("spacing z"))
+        .unwrap_or_else(|| panic!("no `spacing z` line in:\n{text}"));
+    assert!(
+        line.contains("assumed 2.5")
+            && line.contains("one slice")
+            && line.contains("SliceThickness (0018,0050)"),
+        "{line}"
+    );
+    let json: serde_json::Value = serde_json::from_str(&info("bare", true)).unwrap();
+    let field = json["fields"]["spacing z"]
+        .as_str()
+        .unwrap_or_else(|| panic!("{json}"));
+    assert!(
+        field.contains("assumed 1") && field.contains("no SliceThickness (0018,0050)"),
+        "{field}"
+    );
+    let bad = synthetic_series(tmp.path(), "bad", 1, &cells, &|_, e| {
+        set_ds(e, (0x0018, 0x0050), "-2")
+    });
+    let h = bad.header().unwrap();
+    let (_, field) = h.fields.iter().find(|(k, _)| k == "spacing z").unwrap();
+    assert!(
+        field.contains("assumed 1") && field.contains("\"-2\" is not a positive number"),
+        "{field}"
+    );
+    // two slices measure it: nothing is assumed, and SliceThickness is not needed
+    let two = synthetic_series(tmp.path(), "two", 2, &cells, &|_, e| {
+        set_ds(e, (0x0018, 0x0050), "x")
+    });
+    assert!(two
+        .header()
+        .unwrap()
+        .fields
+        .iter()
+        .all(|(k, _)| k != "spacing z"));
+}

@@ -86,6 +86,9 @@ struct Slice {
     orientation: [f64; 6],
     position: DVec3,
     spacing: [f64; 2],
+    /// SliceThickness (0018,0050), the z spacing of a series of one slice: `Ok(None)`
+    /// when missing or empty, `Err(text)` when it is not a positive number.
+    thickness: Result<Option<f64>, String>,
     rescale: Rescale,
 }
 
@@ -97,6 +100,8 @@ struct Series {
     geometry: Geometry,
     /// The common rescale, or `None` when slices differ (voxels become float32).
     rescale: Option<Rescale>,
+    /// How the z spacing was chosen when it could not be measured (one slice).
+    assumed_z: Option<String>,
 }
 
 fn invalid(dir: &Path, message: String) -> VolumeError {
@@ -307,6 +312,22 @@ fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError
     if slope == 0.0 {
         return Err(header_err(path, "RescaleSlope (0028,1053) is 0".into()));
     }
+    // read leniently: only a series of one slice uses it, so a bad value elsewhere
+    // must not refuse a readable series
+    let thickness = match obj.element_opt(tags::SLICE_THICKNESS) {
+        Ok(Some(e)) => {
+            let text = e.to_str().map_or_else(
+                |_| String::new(),
+                |t| t.trim_matches(['\0', ' ']).to_string(),
+            );
+            match e.to_float64() {
+                Ok(t) if t.is_finite() && t > 0.0 => Ok(Some(t)),
+                _ if text.is_empty() => Ok(None),
+                _ => Err(text),
+            }
+        }
+        _ => Ok(None),
+    };
     Ok(Slice {
         path: path.to_path_buf(),
         series: text(tags::SERIES_INSTANCE_UID, "SeriesInstanceUID")?,
@@ -322,6 +343,7 @@ fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError
         orientation: std::array::from_fn(|i| orientation[i]),
         position: DVec3::new(position[0], position[1], position[2]),
         spacing: [spacing[0], spacing[1]],
+        thickness,
         rescale: Rescale { slope, intercept },
     })
 }
@@ -460,10 +482,22 @@ impl DicomSpec {
         let normal = x.cross(y).normalize();
         slices.sort_by(|a, b| a.position.dot(normal).total_cmp(&b.position.dot(normal)));
         let n = slices.len();
+        let mut assumed_z = None;
         let step = if n > 1 {
             (slices[n - 1].position - slices[0].position) / (n - 1) as f64
         } else {
-            normal
+            let (z, from) = match &first.thickness {
+                Ok(Some(t)) => (*t, "from SliceThickness (0018,0050)".to_string()),
+                Ok(None) => (1.0, "no SliceThickness (0018,0050)".to_string()),
+                Err(text) => (
+                    1.0,
+                    format!("SliceThickness (0018,0050) {text:?} is not a positive number"),
+                ),
+            };
+            assumed_z = Some(format!(
+                "assumed {z} (one slice: no second ImagePositionPatient to measure it; {from})"
+            ));
+            normal * z
         };
         for w in slices.windows(2) {
             let d = w[1].position - w[0].position;
@@ -523,6 +557,7 @@ impl DicomSpec {
             scalar_type,
             geometry,
             rescale,
+            assumed_z,
         })
     }
 
@@ -546,6 +581,9 @@ impl DicomSpec {
         }
         if !first.description.is_empty() {
             fields.push(("description".into(), first.description.clone()));
+        }
+        if let Some(z) = &s.assumed_z {
+            fields.push(("spacing z".into(), z.clone()));
         }
         if s.rescale.is_none() {
             fields.push((
@@ -703,6 +741,7 @@ mod tests {
             orientation: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
             position: DVec3::ZERO,
             spacing: [1.0, 1.0],
+            thickness: Ok(None),
             rescale: Rescale::default(),
         }
     }
