@@ -8,8 +8,10 @@
 //!                     uncompressed little-endian only, others refused by name), then
 //!                     the crate reads the elements up to the pixel data
 //!                     series: the one there is, or `series = "UID"`
+//!                     ImageOrientationPatient: two unit vectors at right angles
 //!                     sorted by ImagePositionPatient along the slice normal; equal
-//!                     spacing; gantry tilt refused
+//!                     spacing; gantry tilt refused; one slice: the z spacing is its
+//!                     SliceThickness, else 1 (a "spacing z" field says so)
 //! DicomSpec::load     Limits::check (columns x rows x slices), then each slice's pixel
 //!                     data appended in order, each value taken from bits
 //!                     HighBit+1-BitsStored ..= HighBit of its cell (PS3.5 8, sign
