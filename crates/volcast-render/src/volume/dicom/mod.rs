@@ -8,10 +8,14 @@
 //!                     uncompressed little-endian only, others refused by name), then
 //!                     the crate reads the elements up to the pixel data
 //!                     series: the one there is, or `series = "UID"`
+//!                     ImageOrientationPatient: two unit vectors at right angles
 //!                     sorted by ImagePositionPatient along the slice normal; equal
-//!                     spacing; gantry tilt refused
+//!                     spacing; gantry tilt refused; one slice: the z spacing is its
+//!                     SliceThickness, else 1 (a "spacing z" field says so)
 //! DicomSpec::load     Limits::check (columns x rows x slices), then each slice's pixel
-//!                     data appended in order; rescale slope/intercept: the same for
+//!                     data appended in order, each value taken from bits
+//!                     HighBit+1-BitsStored ..= HighBit of its cell (PS3.5 8, sign
+//!                     extended when signed); rescale slope/intercept: the same for
 //!                     every slice -> the header's Rescale (voxels keep their type);
 //!                     different -> float32 values slope * x + intercept
 //! ```
@@ -41,6 +45,14 @@ use nrrd::{ElementSink, ReadError};
 /// Most files a series folder may hold.
 const MAX_FILES: usize = 100_000;
 
+/// How far from 1 the length of either direction of ImageOrientationPatient may be:
+/// GDCM's bound (1e-3 on the squared length), which cosines rounded to 4 digits stay
+/// inside; the spacing is scaled by that length, so it is also the spacing's error.
+const UNIT_TOLERANCE: f64 = 5e-4;
+
+/// How far from 0 the dot product of the two directions may be (GDCM's bound).
+const ORTHOGONAL_TOLERANCE: f64 = 1e-3;
+
 /// The transfer syntaxes read: uncompressed, little-endian.
 const READABLE: [(&str, &str); 2] = [
     ("1.2.840.10008.1.2", "Implicit VR Little Endian"),
@@ -69,10 +81,16 @@ struct Slice {
     columns: usize,
     bits_allocated: u16,
     bits_stored: u16,
+    /// The most significant bit of a value in its cell (PS3.5 8): the value is bits
+    /// `high_bit + 1 - bits_stored ..= high_bit`.
+    high_bit: u16,
     signed: bool,
     orientation: [f64; 6],
     position: DVec3,
     spacing: [f64; 2],
+    /// SliceThickness (0018,0050), the z spacing of a series of one slice: `Ok(None)`
+    /// when missing or empty, `Err(text)` when it is not a positive number.
+    thickness: Result<Option<f64>, String>,
     rescale: Rescale,
 }
 
@@ -84,6 +102,8 @@ struct Series {
     geometry: Geometry,
     /// The common rescale, or `None` when slices differ (voxels become float32).
     rescale: Option<Rescale>,
+    /// How the z spacing was chosen when it could not be measured (one slice).
+    assumed_z: Option<String>,
 }
 
 fn invalid(dir: &Path, message: String) -> VolumeError {
@@ -122,6 +142,17 @@ fn syntax_name(uid: &str) -> String {
         || format!("{uid} (unknown)"),
         |ts| format!("{uid} ({})", ts.name()),
     )
+}
+
+/// `x` to 6 decimals, without trailing zeros.
+fn short(x: f64) -> String {
+    let s = format!("{x:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".into()
+    } else {
+        s.into()
+    }
 }
 
 fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError> {
@@ -223,6 +254,20 @@ fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError
             ))
         }
     };
+    let high_bit = match int(tags::HIGH_BIT, "HighBit (0028,0102)")? {
+        None => bits_stored - 1,
+        Some(h) if (i64::from(bits_stored) - 1..i64::from(bits_allocated)).contains(&h) => h as u16,
+        Some(h) => {
+            return Err(header_err(
+                path,
+                format!(
+                    "HighBit (0028,0102) is {h}, expected BitsStored-1 .. BitsAllocated-1 ({} to {}): the top bit of a {bits_stored}-bit value in a {bits_allocated}-bit cell",
+                    bits_stored - 1,
+                    bits_allocated - 1
+                ),
+            ))
+        }
+    };
     let signed = int(
         tags::PIXEL_REPRESENTATION,
         "PixelRepresentation (0028,0103)",
@@ -233,6 +278,22 @@ fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError
         6,
     )?
     .ok_or_else(|| missing("ImageOrientationPatient (0020,0037)"))?;
+    let [x, y] = [0, 3].map(|i| DVec3::from_slice(&orientation[i..i + 3]));
+    let (lx, ly, dot) = (x.length(), y.length(), x.dot(y));
+    if (lx - 1.0).abs() > UNIT_TOLERANCE
+        || (ly - 1.0).abs() > UNIT_TOLERANCE
+        || dot.abs() > ORTHOGONAL_TOLERANCE
+    {
+        return Err(header_err(
+            path,
+            format!(
+                "ImageOrientationPatient (0020,0037) is {orientation:?}: its row and column directions have lengths {} and {} and dot product {}, expected unit vectors (lengths within {UNIT_TOLERANCE} of 1) at right angles (dot product within {ORTHOGONAL_TOLERANCE} of 0)",
+                short(lx),
+                short(ly),
+                short(dot)
+            ),
+        ));
+    }
     let position = floats(
         tags::IMAGE_POSITION_PATIENT,
         "ImagePositionPatient (0020,0032)",
@@ -253,6 +314,22 @@ fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError
     if slope == 0.0 {
         return Err(header_err(path, "RescaleSlope (0028,1053) is 0".into()));
     }
+    // read leniently: only a series of one slice uses it, so a bad value elsewhere
+    // must not refuse a readable series
+    let thickness = match obj.element_opt(tags::SLICE_THICKNESS) {
+        Ok(Some(e)) => {
+            let text = e.to_str().map_or_else(
+                |_| String::new(),
+                |t| t.trim_matches(['\0', ' ']).to_string(),
+            );
+            match e.to_float64() {
+                Ok(t) if t.is_finite() && t > 0.0 => Ok(Some(t)),
+                _ if text.is_empty() => Ok(None),
+                _ => Err(text),
+            }
+        }
+        _ => Ok(None),
+    };
     Ok(Slice {
         path: path.to_path_buf(),
         series: text(tags::SERIES_INSTANCE_UID, "SeriesInstanceUID")?,
@@ -263,10 +340,12 @@ fn read_slice(path: &Path, transfer_syntax: String) -> Result<Slice, VolumeError
         columns,
         bits_allocated,
         bits_stored,
+        high_bit,
         signed,
         orientation: std::array::from_fn(|i| orientation[i]),
         position: DVec3::new(position[0], position[1], position[2]),
         spacing: [spacing[0], spacing[1]],
+        thickness,
         rescale: Rescale { slope, intercept },
     })
 }
@@ -381,6 +460,7 @@ impl DicomSpec {
                 && s.columns == first.columns
                 && s.bits_allocated == first.bits_allocated
                 && s.bits_stored == first.bits_stored
+                && s.high_bit == first.high_bit
                 && s.signed == first.signed
                 && s.spacing == first.spacing
                 && s.orientation
@@ -391,7 +471,7 @@ impl DicomSpec {
                 return Err(VolumeError::Unsupported {
                     path: s.path.clone(),
                     message: format!(
-                        "its Rows, Columns, BitsAllocated, BitsStored, PixelRepresentation, PixelSpacing or ImageOrientationPatient differ from those of {}: the slices of a volume share them",
+                        "its Rows, Columns, BitsAllocated, BitsStored, HighBit, PixelRepresentation, PixelSpacing or ImageOrientationPatient differ from those of {}: the slices of a volume share them",
                         first.path.display()
                     ),
                 });
@@ -400,20 +480,26 @@ impl DicomSpec {
         let o = first.orientation;
         let x = DVec3::new(o[0], o[1], o[2]);
         let y = DVec3::new(o[3], o[4], o[5]);
-        let normal = x.cross(y);
-        if !(normal.length() > 0.9 && x.dot(y).abs() < 1e-3) {
-            return Err(header_err(
-                &first.path,
-                format!("ImageOrientationPatient {o:?} is not two orthogonal unit vectors"),
-            ));
-        }
-        let normal = normal.normalize();
+        // every slice's directions were checked to be unit and orthogonal on reading
+        let normal = x.cross(y).normalize();
         slices.sort_by(|a, b| a.position.dot(normal).total_cmp(&b.position.dot(normal)));
         let n = slices.len();
+        let mut assumed_z = None;
         let step = if n > 1 {
             (slices[n - 1].position - slices[0].position) / (n - 1) as f64
         } else {
-            normal
+            let (z, from) = match &first.thickness {
+                Ok(Some(t)) => (*t, "from SliceThickness (0018,0050)".to_string()),
+                Ok(None) => (1.0, "no SliceThickness (0018,0050)".to_string()),
+                Err(text) => (
+                    1.0,
+                    format!("SliceThickness (0018,0050) {text:?} is not a positive number"),
+                ),
+            };
+            assumed_z = Some(format!(
+                "assumed {z} (one slice: no second ImagePositionPatient to measure it; {from})"
+            ));
+            normal * z
         };
         for w in slices.windows(2) {
             let d = w[1].position - w[0].position;
@@ -473,6 +559,7 @@ impl DicomSpec {
             scalar_type,
             geometry,
             rescale,
+            assumed_z,
         })
     }
 
@@ -496,6 +583,9 @@ impl DicomSpec {
         }
         if !first.description.is_empty() {
             fields.push(("description".into(), first.description.clone()));
+        }
+        if let Some(z) = &s.assumed_z {
+            fields.push(("spacing z".into(), z.clone()));
         }
         if s.rescale.is_none() {
             fields.push((
@@ -533,7 +623,7 @@ impl DicomSpec {
     }
 
     /// Reads the series: `limits` checked before allocating; the XXH3-128 of the pixel
-    /// data as stored, slice by slice in order, when `hash`.
+    /// values (unpacked from their cells), slice by slice in order, when `hash`.
     pub fn load_hashed(
         &self,
         limits: &Limits,
@@ -574,7 +664,7 @@ impl DicomSpec {
                     ),
                 });
             }
-            let bytes = masked(&bytes[..need], s, stored);
+            let bytes = unpacked(&bytes[..need], s, stored);
             if let Some(h) = &mut hasher {
                 h.update(&bytes);
             }
@@ -603,27 +693,79 @@ impl DicomSpec {
     }
 }
 
-/// The pixel bytes with the bits above BitsStored cleared (unsigned) or filled with
-/// the sign (signed), as DICOM's overlay-free reading requires.
-fn masked(bytes: &[u8], s: &Slice, ty: ScalarType) -> Vec<u8> {
+/// The values of the pixel cells: bits `HighBit + 1 - BitsStored ..= HighBit` of each
+/// cell moved down to bit 0, the bits above cleared (unsigned) or filled with the sign
+/// (signed), as PS3.5 8 lays a value out in its cell.
+fn unpacked(bytes: &[u8], s: &Slice, ty: ScalarType) -> Vec<u8> {
     let bits = u32::from(s.bits_stored);
     let size = ty.size();
+    // a value filling its cell (HighBit is then BitsStored - 1, checked on reading)
     if bits as usize == size * 8 {
         return bytes.to_vec();
     }
-    let shift = 64 - bits;
+    // HighBit to bit 63 drops the bits above the value; shifting back down by
+    // 64 - BitsStored drops those below it and extends the sign
+    let up = 63 - u32::from(s.high_bit);
+    let down = 64 - bits;
     bytes
         .chunks_exact(size)
         .flat_map(|c| {
             let mut v = [0u8; 8];
             v[..size].copy_from_slice(c);
-            let x = u64::from_le_bytes(v) << shift;
+            let x = u64::from_le_bytes(v) << up;
             let y = if s.signed {
-                ((x as i64) >> shift) as u64
+                ((x as i64) >> down) as u64
             } else {
-                x >> shift
+                x >> down
             };
             y.to_le_bytes()[..size].to_vec()
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn slice(bits_allocated: u16, bits_stored: u16, high_bit: u16, signed: bool) -> Slice {
+        Slice {
+            path: PathBuf::from("s.dcm"),
+            series: String::new(),
+            description: String::new(),
+            modality: String::new(),
+            transfer_syntax: String::new(),
+            rows: 1,
+            columns: 1,
+            bits_allocated,
+            bits_stored,
+            high_bit,
+            signed,
+            orientation: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+            position: DVec3::ZERO,
+            spacing: [1.0, 1.0],
+            thickness: Ok(None),
+            rescale: Rescale::default(),
+        }
+    }
+
+    #[test]
+    fn unpacked_takes_the_bits_high_bit_ends() {
+        // 8-bit cells, 7 bits ending at bit 7: the low bit is not part of the value
+        let s = slice(8, 7, 7, false);
+        assert_eq!(unpacked(&[0xFF, 0x81], &s, ScalarType::Uint8), [0x7F, 0x40]);
+        // signed 32-bit cells, 24 bits ending at bit 27: bits 4..=27, bit 27 the sign
+        let s = slice(32, 24, 27, true);
+        let cells: Vec<u8> = [0xF800_000Fu32, 0x07FF_FFF0, 0x0000_0010]
+            .iter()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        let values: Vec<i32> = unpacked(&cells, &s, ScalarType::Int32)
+            .chunks_exact(4)
+            .map(|c| i32::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        assert_eq!(values, [-(1 << 23), (1 << 23) - 1, 1]);
+        // a value filling its cell is kept as it is
+        let s = slice(16, 16, 15, true);
+        assert_eq!(unpacked(&[1, 0x80], &s, ScalarType::Int16), [1, 0x80]);
+    }
 }
