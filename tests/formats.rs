@@ -40,6 +40,13 @@ const PAIRS: &[(&str, &str, &str)] = &[
     ("f32_4d.nii.gz", "f32_4d_ref0.nrrd", "index = 0"),
     ("f32_4d.nii.gz", "f32_4d_ref1.nrrd", "index = 1"),
     ("f32_4d.nii.gz", "f32_4d_ref2.nrrd", "index = 2"),
+    // NIfTI-2 twins of the NIfTI-1 files (make_nifti2.py): the same references
+    ("n2_u8_sform.nii", "u8_sform_ref.nrrd", ""),
+    ("n2_u8_sform.nii.gz", "u8_sform_ref.nrrd", ""),
+    ("n2_i16_scaled.nii", "i16_scaled_ref.nrrd", ""),
+    ("n2_i16_big.nii", "i16_big_ref.nrrd", ""),
+    ("n2_f32_4d.nii.gz", "f32_4d_ref1.nrrd", "index = 1"),
+    ("n2_f32_4d.nii.gz", "f32_4d_ref2.nrrd", "index = 2"),
     ("u8.mha", "u8_mha_ref.nrrd", ""),
     ("i16.mhd", "i16_mhd_ref.nrrd", ""),
     ("f32_zlib.mha", "f32_zlib_ref.nrrd", ""),
@@ -118,6 +125,69 @@ fn nifti_geometry_is_the_affine_nibabel_reports() {
         g.matrix().determinant() < 0.0,
         "qfac -1 makes a left-handed frame"
     );
+}
+
+#[test]
+fn nifti2_is_read_as_nibabel_reads_it() {
+    let text = std::fs::read_to_string(fixture("nifti2.json")).unwrap();
+    let e: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let files = e.as_object().unwrap().keys().filter(|k| *k != "tools");
+    let mut seen = 0;
+    for name in files {
+        let x = &e[name];
+        let index = name.contains("4d").then_some(2);
+        let h = nifti(name, index).header().unwrap();
+        let affine = &x["affine"];
+        let at = |r: usize, c: usize| affine[r][c].as_f64().unwrap();
+        for r in 0..3 {
+            for c in 0..3 {
+                crate::assert_close!(
+                    h.geometry.axes[c][r],
+                    at(r, c),
+                    1e-9,
+                    "{name} axis {c}[{r}]"
+                );
+            }
+            crate::assert_close!(h.geometry.origin[r], at(r, 3), 1e-9, "{name} origin[{r}]");
+        }
+        let shape: Vec<usize> = x["shape"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap() as usize)
+            .collect();
+        assert_eq!(h.sizes.to_vec(), shape[..3].to_vec(), "{name}");
+        let [slope, inter] = [0, 1].map(|i| x["slope_inter"][i].as_f64().unwrap());
+        assert_eq!(
+            (h.rescale.slope, h.rescale.intercept),
+            (slope, inter),
+            "{name}"
+        );
+        assert!(
+            h.fields
+                .iter()
+                .any(|(k, v)| k == "format" && v == "NIfTI-2"),
+            "{name}"
+        );
+        // the physical values of a 3D file, summed, are nibabel's
+        if index.is_none() {
+            let v = nifti(name, None).load(&Limits::default()).unwrap();
+            let sum: f64 = (0..v.header.voxel_count())
+                .map(|i| h.rescale.apply(v.data.get_f64(i)))
+                .sum();
+            crate::assert_close!(sum, x["physical_sum"].as_f64().unwrap(), 1e-9, "{name} sum");
+        }
+        // and the header is its NIfTI-1 twin's but for the version
+        let twin = x["twin_of"].as_str().unwrap();
+        let t = nifti(twin, index).header().unwrap();
+        assert_eq!(
+            (t.sizes, t.scalar_type, t.geometry, t.rescale),
+            (h.sizes, h.scalar_type, h.geometry, h.rescale),
+            "{name}"
+        );
+        seen += 1;
+    }
+    assert_eq!(seen, 6);
 }
 
 #[test]

@@ -184,10 +184,38 @@ const NIFTI_FIELDS: &[(usize, &[u8])] = &[
     (344, &[b'n', b'i', b'1', 0]), // magic of a pair
 ];
 
-/// One to three NIfTI header fields overwritten with hostile values.
+/// NIfTI-2 header fields (byte offset, little-endian bytes) worth overwriting: the
+/// 64-bit sizes and offset, the magic's check bytes, double-precision transforms.
+const NIFTI2_FIELDS: &[(usize, &[u8])] = &[
+    (16, &[8, 0, 0, 0, 0, 0, 0, 0]),             // dim[0] = 8
+    (24, &[0, 0, 0, 0, 0, 1, 0, 0]),             // dim[1] = 2^40
+    (32, &[0xff, 0xff, 0xff, 0x7f, 0, 0, 0, 0]), // dim[2] = 2^31 - 1
+    (40, &[0, 0, 0, 0, 0, 0, 0, 0x80]),          // dim[3] = -2^63
+    (48, &[0xff, 0xff, 0, 0, 0, 0, 0, 0]),       // dim[4] = 65535
+    (12, &[128, 0]),                             // datatype RGB24
+    (14, &[8, 0]),                               // bitpix 8
+    (168, &[0, 0, 0, 0, 0, 0, 0, 0x7f]),         // vox_offset = 2^62-ish
+    (168, &[0x10, 0, 0, 0, 0, 0, 0, 0]),         // vox_offset = 16
+    (176, &[0, 0, 0, 0, 0, 0, 0xf8, 0x7f]),      // scl_slope = nan
+    (344, &[1, 0, 0, 0]),                        // qform_code 1
+    (348, &[0, 0, 0, 0]),                        // sform_code 0
+    (352, &[0, 0, 0, 0, 0, 0, 0xf0, 0x7f]),      // quatern_b = inf
+    (400, &[0, 0, 0, 0, 0, 0, 0, 0]),            // srow_x[0] = 0
+    (8, &[b'\n', 0, 0, 0]),                      // magic's check bytes
+    (4, &[b'n', b'i', b'2', 0]),                 // magic of a pair
+    (0, &[0x5c, 1, 0, 0]),                       // sizeof_hdr 348
+];
+
+/// One to three NIfTI header fields overwritten with hostile values (NIfTI-2's
+/// fields for a NIfTI-2 header).
 fn mutate_nifti_fields(rng: &mut Rng, b: &mut [u8]) {
+    let fields = if b.starts_with(&540i32.to_le_bytes()) {
+        NIFTI2_FIELDS
+    } else {
+        NIFTI_FIELDS
+    };
     for _ in 0..1 + rng.below(3) {
-        let (at, bytes) = *rng.pick(NIFTI_FIELDS);
+        let (at, bytes) = *rng.pick(fields);
         if let Some(dst) = b.get_mut(at..at + bytes.len()) {
             dst.copy_from_slice(bytes);
         }
@@ -524,7 +552,9 @@ pub fn mutate_kind(rng: &mut Rng, input: &[u8], kind: Kind) -> Vec<u8> {
         let _ = e.write_all(&inner);
         return e.finish().unwrap_or_default();
     }
-    if kind == Kind::Formats && input.starts_with(&348i32.to_le_bytes()) && rng.below(2) == 0 {
+    let nifti =
+        input.starts_with(&348i32.to_le_bytes()) || input.starts_with(&540i32.to_le_bytes());
+    if kind == Kind::Formats && nifti && rng.below(2) == 0 {
         let mut b = input.to_vec();
         mutate_nifti_fields(rng, &mut b);
         if rng.below(2) == 0 {

@@ -4,7 +4,7 @@
 //! VolumeSource --header()--> VolumeHeader (sizes, type, geometry: no voxel memory yet)
 //!              --load()----> Volume        (data in its native type, limits checked first)
 //! ```
-//! Sources are NRRD files (attached or detached header, [`nrrd`]), NIfTI-1 files
+//! Sources are NRRD files (attached or detached header, [`nrrd`]), NIfTI-1 and NIfTI-2 files
 //! ([`nifti`]), MetaImage files ([`metaimage`]), DICOM series ([`dicom`]), headerless
 //! raw files ([`raw`]) and analytic fields sampled on a grid ([`synthetic`]). Each file
 //! keeps its own world coordinates; a stored-to-physical map (NIfTI `scl_slope`, DICOM
@@ -171,7 +171,7 @@ pub fn human_bytes(b: u64) -> String {
 pub enum VolumeSource {
     /// A `.nrrd` or `.nhdr` file.
     Nrrd(PathBuf),
-    /// A NIfTI-1 file (`.nii`, `.nii.gz`) and the volume of it to render.
+    /// A NIfTI-1 or NIfTI-2 file (`.nii`, `.nii.gz`) and the volume of it to render.
     Nifti(nifti::NiftiSpec),
     /// A MetaImage file (`.mha`, or a `.mhd` header and its data file).
     MetaImage(PathBuf),

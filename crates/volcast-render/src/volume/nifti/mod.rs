@@ -1,9 +1,10 @@
-//! NIfTI-1 reader (format: <https://nifti.nimh.nih.gov/nifti-1>, `nifti1.h`): one
-//! `.nii` file (magic `n+1`), or the same gzip-compressed (`.nii.gz`, told by its first
+//! NIfTI-1 and NIfTI-2 reader (formats: <https://nifti.nimh.nih.gov/nifti-1>,
+//! `nifti1.h`, `nifti2.h`): one `.nii` file (magic `n+1` or `n+2`), or the same gzip-compressed (`.nii.gz`, told by its first
 //! bytes, not its name), in either byte order.
 //!
 //! ```text
-//! NiftiSpec::header    header::read_header  348 bytes, sizeof_hdr -> byte order, each
+//! NiftiSpec::header    header::read_header  348 or 540 bytes, sizeof_hdr -> version and
+//!                                           byte order, each
 //!                                           field checked (dim, datatype, bitpix,
 //!                                           vox_offset, magic); the sform, qform or
 //!                                           pixdim geometry; scl_slope/scl_inter
@@ -32,7 +33,7 @@ use super::mapped::{is_native_order, open_regular};
 use super::stream::{self, Decode};
 use super::{Limits, ReadReason, Storage, Volume, VolumeError, VolumeHeader};
 
-/// A NIfTI-1 file and the 3D volume of it to render.
+/// A NIfTI-1 or NIfTI-2 file and the 3D volume of it to render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NiftiSpec {
     /// The `.nii` or `.nii.gz` file.
