@@ -217,4 +217,19 @@ fn a_camera_beyond_the_renderers_range_is_refused_before_any_frame() {
             ],
         );
     }
+    // a keyframe far away is refused even when the run renders other frames: every
+    // frame's camera is interpolated from the keyframes
+    std::fs::write(
+        d.join("k.toml"),
+        format!(
+            "[volume]\nsynthetic = \"ball\"\nsizes = [8, 8, 8]\n{}[[keyframe]]\nframe = 0\nazimuth = 0\ntarget = [3.5, 3.5, 3.5]\n[[keyframe]]\nframe = 9\ntarget = [1e300, 0, 0]\n",
+            MIP.replace("frames = 2", "frames = 10")
+        ),
+    )
+    .unwrap();
+    refused(
+        d,
+        &["render", "k.toml", "--frames", "0..1"],
+        &["frame 9: the camera cannot be rendered"],
+    );
 }

@@ -244,11 +244,14 @@ impl Plan {
     /// Refuses views the renderer cannot compute: it marches in f32, so every eye
     /// position, direction and image extent must be finite there, and the extent
     /// not so small that it vanishes (a camera far beyond the volume, or a zoom
-    /// near the f64 limits). Checked for the frames this run renders, with the
-    /// zoom `fit` finds checked again once it is known.
+    /// near the f64 limits). Checked for the frames this run renders and the frames
+    /// keyframes set (what every other frame's camera is interpolated from, and
+    /// what an automatic grey window previews), with the zoom `fit` finds checked
+    /// again once it is known.
     pub(crate) fn check_views(&self) -> Result<(), String> {
         let f32_ok = |x: f64| (x as f32).is_finite();
-        for &k in &self.frame_list {
+        let keyed = self.views.keyed_frames();
+        for &k in self.frame_list.iter().chain(&keyed) {
             for &e in self.views.eyes() {
                 let v = self
                     .views

@@ -160,6 +160,20 @@ impl Views {
         self.reuse
     }
 
+    /// The frames of the orbit that have a keyframe: where a keyframed camera takes
+    /// the values it interpolates between (none on other paths).
+    pub fn keyed_frames(&self) -> Vec<usize> {
+        match &self.path {
+            Some((_, Some(kf))) => kf
+                .frames
+                .iter()
+                .copied()
+                .filter(|&k| k < self.frames)
+                .collect(),
+            _ => Vec::new(),
+        }
+    }
+
     /// The orbit's period in frames, when it has one.
     pub fn period(&self) -> Option<i64> {
         self.period
