@@ -34,4 +34,5 @@ mod skipping;
 mod special_files;
 mod stereo;
 mod units;
+mod video;
 mod viewer;

@@ -854,6 +854,14 @@ fn check(
             }
             _ => width,
         };
+        if a.formats.iter().any(|f| f.is_video())
+            && crate::output::animation::find_ffmpeg().is_none()
+        {
+            return Err(format!(
+                "[animation] formats: {}",
+                crate::output::animation::NO_FFMPEG
+            ));
+        }
         if a.formats.contains(&crate::scene::AnimationFormat::Gif)
             && file_width.max(height) > usize::from(u16::MAX)
         {

@@ -12,6 +12,15 @@
 //!   palette, colour frames a palette per frame (NeuQuant). GIF delays are whole
 //!   hundredths of a second, so the frame time is `round(100/fps)` hundredths, at
 //!   least 2 (browsers slow smaller delays down): 24 fps plays at 25.
+//! - **MP4** (H.264, yuv420p, `+faststart`) and **WebM** (VP9, yuv420p): encoded by
+//!   the `ffmpeg` program found on `PATH`, the decoded frames streamed to it through
+//!   a pipe (no copies on disk). ffmpeg writes into a private folder made beside the
+//!   video, and the finished file is renamed into place, so a failed encoding
+//!   leaves nothing and a planted link is replaced, never written through. Sizes
+//!   are padded to even numbers, which yuv420p needs.
+//!
+//! `ping_pong` plays the frames forward, then backward without repeating the two
+//! ends (2n - 2 frames), for rocking paths.
 
 use std::io::{BufReader, Write};
 use std::path::{Path, PathBuf};
@@ -91,11 +100,18 @@ pub fn assemble(out: &Path, outputs: &Outputs, anim: &Animation) -> Result<Vec<W
         let frames: Vec<PathBuf> = (0..outputs.frames)
             .map(|k| frame_path(out, &seq.pass, k, seq.eye, "png"))
             .collect();
+        let frames: Vec<PathBuf> = played(frames.len(), anim.ping_pong)
+            .into_iter()
+            .map(|k| frames[k].clone())
+            .collect();
         for &format in &anim.formats {
             let path = seq.animation_path(out, format);
             let fps = match format {
                 AnimationFormat::Gif => write_gif(&path, &frames, anim)?,
                 AnimationFormat::Apng => write_apng(&path, &frames, anim)?,
+                AnimationFormat::Mp4 | AnimationFormat::Webm => {
+                    write_video(&path, &frames, anim, format)?
+                }
             };
             written.push(Written {
                 path,
@@ -304,6 +320,220 @@ fn write_gif(dest: &Path, frames: &[PathBuf], anim: &Animation) -> Result<f64, E
         Ok(())
     })?;
     Ok(100.0 / delay as f64)
+}
+
+/// The frame numbers an animation of `n` frames plays: `0..n`, and with
+/// `ping_pong` back again from `n - 2` to 1.
+pub fn played(n: usize, ping_pong: bool) -> Vec<usize> {
+    let back = if ping_pong && n > 2 {
+        (1..n - 1).rev().collect()
+    } else {
+        Vec::new()
+    };
+    (0..n).chain(back).collect()
+}
+
+/// The `ffmpeg` program on `PATH`, if there is one.
+pub fn find_ffmpeg() -> Option<PathBuf> {
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path)
+        .map(|d| d.join("ffmpeg"))
+        .find(|p| is_executable(p))
+}
+
+fn is_executable(p: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
+    }
+    #[cfg(not(unix))]
+    {
+        p.is_file()
+    }
+}
+
+/// What to do when a scene asks for a video and no ffmpeg is found.
+pub const NO_FFMPEG: &str = "the videos (formats \"mp4\", \"webm\") are encoded by the ffmpeg program, and none is on PATH: install it (Debian/Ubuntu: sudo apt install ffmpeg; Fedora: sudo dnf install ffmpeg; macOS: brew install ffmpeg; conda: conda install -c conda-forge ffmpeg), or leave the video formats out";
+
+/// ffmpeg's raw pixel format for a decoded PNG frame (16-bit samples are
+/// big-endian in PNG).
+fn raw_pixel_format(d: &Decoded) -> Option<&'static str> {
+    use png::{BitDepth, ColorType};
+    Some(match (d.color, d.depth) {
+        (ColorType::Grayscale, BitDepth::Eight) => "gray",
+        (ColorType::Grayscale, BitDepth::Sixteen) => "gray16be",
+        (ColorType::GrayscaleAlpha, BitDepth::Eight) => "ya8",
+        (ColorType::GrayscaleAlpha, BitDepth::Sixteen) => "ya16be",
+        (ColorType::Rgb, BitDepth::Eight) => "rgb24",
+        (ColorType::Rgb, BitDepth::Sixteen) => "rgb48be",
+        (ColorType::Rgba, BitDepth::Eight) => "rgba",
+        (ColorType::Rgba, BitDepth::Sixteen) => "rgba64be",
+        _ => return None,
+    })
+}
+
+/// Encodes `frames` into the video `dest` with ffmpeg (see the module
+/// documentation); returns the frame rate it plays at.
+fn write_video(
+    dest: &Path,
+    frames: &[PathBuf],
+    anim: &Animation,
+    format: AnimationFormat,
+) -> Result<f64, Error> {
+    use std::process::{Command, Stdio};
+    let fail = |message: String| Error::Encode {
+        path: dest.to_path_buf(),
+        message,
+    };
+    let ffmpeg = find_ffmpeg().ok_or_else(|| fail(NO_FFMPEG.into()))?;
+    let first = decode(&frames[0])?;
+    let pixels = raw_pixel_format(&first).ok_or_else(|| {
+        fail(format!(
+            "frames of {:?} {:?} cannot be encoded",
+            first.color, first.depth
+        ))
+    })?;
+    let (dir, name) = (
+        dest.parent().unwrap_or(Path::new(".")),
+        dest.file_name()
+            .and_then(|n| n.to_str())
+            .ok_or_else(|| fail("not a video file name".into()))?,
+    );
+    // a folder only this process can write, so ffmpeg's file cannot be a planted link
+    let private = dir.join(super::write::temporary_name(name));
+    let mut builder = std::fs::DirBuilder::new();
+    #[cfg(unix)]
+    std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
+    builder.create(&private).map_err(|source| Error::Output {
+        path: private.clone(),
+        source,
+    })?;
+    let encoded = private.join(name);
+    let result = (|| {
+        let quality = anim
+            .quality
+            .or(format.quality_range().map(|r| r.0))
+            .unwrap_or(18)
+            .to_string();
+        let size = format!("{}x{}", first.width, first.height);
+        let fps = anim.fps.to_string();
+        let mut args: Vec<&str> = vec![
+            "-hide_banner",
+            "-loglevel",
+            "error",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            pixels,
+            "-s",
+            &size,
+            "-framerate",
+            &fps,
+            "-i",
+            "pipe:0",
+            "-an",
+            "-vf",
+            "pad=ceil(iw/2)*2:ceil(ih/2)*2",
+            "-pix_fmt",
+            "yuv420p",
+            "-crf",
+            &quality,
+            // no encoder version or time in the file: the same frames give the same bytes
+            "-fflags",
+            "+bitexact",
+            "-flags:v",
+            "+bitexact",
+            "-map_metadata",
+            "-1",
+        ];
+        match format {
+            AnimationFormat::Mp4 => args.extend([
+                "-c:v",
+                "libx264",
+                "-preset",
+                "medium",
+                "-movflags",
+                "+faststart",
+                "-f",
+                "mp4",
+            ]),
+            _ => args.extend([
+                "-c:v",
+                "libvpx-vp9",
+                "-b:v",
+                "0",
+                "-row-mt",
+                "1",
+                "-f",
+                "webm",
+            ]),
+        }
+        let mut child = Command::new(&ffmpeg)
+            .args(&args)
+            .arg(&encoded)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| fail(format!("cannot run {}: {e}", ffmpeg.display())))?;
+        let mut stderr = child.stderr.take().expect("piped");
+        let said = std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = std::io::Read::read_to_string(&mut stderr, &mut s);
+            s
+        });
+        let mut stdin = child.stdin.take().expect("piped");
+        let mut fed: Result<(), Error> = Ok(());
+        'feed: for chunk in frames.chunks(batch()) {
+            let decoded: Vec<Decoded> = match chunk.par_iter().map(|p| decode(p)).collect() {
+                Ok(d) => d,
+                Err(e) => {
+                    fed = Err(e);
+                    break;
+                }
+            };
+            for (d, p) in decoded.iter().zip(chunk) {
+                if let Err(e) = same_kind(&first, d, p) {
+                    fed = Err(e);
+                    break 'feed;
+                }
+                // a closed pipe means ffmpeg stopped: its own message says why
+                if stdin.write_all(&d.data).is_err() {
+                    break 'feed;
+                }
+            }
+        }
+        drop(stdin);
+        if fed.is_err() {
+            let _ = child.kill();
+        }
+        let status = child
+            .wait()
+            .map_err(|e| fail(format!("waiting for ffmpeg: {e}")))?;
+        let said = said.join().unwrap_or_default();
+        fed?;
+        if !status.success() {
+            let last: Vec<&str> = said.lines().rev().take(4).collect();
+            let last: Vec<&str> = last.into_iter().rev().collect();
+            return Err(fail(format!(
+                "{} failed ({status}): {}",
+                ffmpeg.display(),
+                if last.is_empty() {
+                    "no message".into()
+                } else {
+                    last.join(" / ")
+                }
+            )));
+        }
+        std::fs::rename(&encoded, dest).map_err(|source| Error::Output {
+            path: dest.to_path_buf(),
+            source,
+        })
+    })();
+    let _ = std::fs::remove_file(&encoded);
+    let _ = std::fs::remove_dir(&private);
+    result.map(|()| anim.fps)
 }
 
 /// Quotes a path for a POSIX shell when it needs it.

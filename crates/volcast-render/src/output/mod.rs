@@ -248,12 +248,37 @@ pub fn describe_outputs(scene: &Scene, out: &Path, viewer: bool) -> String {
         } else {
             String::new()
         };
+        let video = if a.formats.iter().any(|f| f.is_video()) {
+            let crf = a
+                .formats
+                .iter()
+                .filter_map(|f| {
+                    let (default, _) = f.quality_range()?;
+                    Some(format!(
+                        "{} crf {}",
+                        f.extension(),
+                        a.quality.unwrap_or(default)
+                    ))
+                })
+                .collect::<Vec<_>>()
+                .join(", ");
+            let by = animation::find_ffmpeg()
+                .map_or("no ffmpeg found".into(), |p| p.display().to_string());
+            format!("; videos by {by} ({crf})")
+        } else {
+            String::new()
+        };
         let _ = writeln!(
             s,
-            "animate  {} at {} fps{gif}, {}; written once every frame exists",
+            "animate  {} at {} fps{gif}, {}{}{video}; written once every frame exists",
             files.join(", "),
             a.fps,
-            if a.looping { "looping" } else { "playing once" }
+            if a.looping { "looping" } else { "playing once" },
+            if a.ping_pong {
+                ", forward then back"
+            } else {
+                ""
+            }
         );
     }
     if viewer {

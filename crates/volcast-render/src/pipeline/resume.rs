@@ -184,7 +184,12 @@ pub(super) fn finish(
     let outputs = &plan.output;
     let sequences = outputs.sequences();
     let fps = outputs.animation.as_ref().map_or(24.0, |a| a.fps);
-    let ffmpeg: Vec<String> = if outputs.format == Format::Nrrd {
+    // (no hint when the run writes the MP4 itself)
+    let writes_mp4 = outputs
+        .animation
+        .as_ref()
+        .is_some_and(|a| a.formats.contains(&crate::scene::AnimationFormat::Mp4));
+    let ffmpeg: Vec<String> = if outputs.format == Format::Nrrd || writes_mp4 {
         Vec::new()
     } else {
         sequences
@@ -251,11 +256,20 @@ fn animation_entries(
     previous: Option<&serde_json::Value>,
     assembled: &mut Vec<animation::Written>,
 ) -> Result<serde_json::Value, Error> {
-    let settings = json!({
+    let mut settings = json!({
         "formats": anim.formats.iter().map(|f| f.extension()).collect::<Vec<_>>(),
         "fps": anim.fps,
         "loop": anim.looping,
     });
+    // (present only when used, so that older manifests' settings still match)
+    if let serde_json::Value::Object(m) = &mut settings {
+        if let Some(q) = anim.quality {
+            m.insert("quality".into(), json!(q));
+        }
+        if anim.ping_pong {
+            m.insert("ping_pong".into(), json!(true));
+        }
+    }
     // the SHA-256 of each frame file, by name
     let frame_hashes: HashMap<&str, &str> = records
         .iter()
@@ -339,10 +353,12 @@ fn animation_entries(
         files.push(json!({
             "file": file,
             "format": format.extension(),
-            "frames": outputs.frames,
+            "frames": animation::played(outputs.frames, anim.ping_pong).len(),
             "fps": match format {
                 crate::scene::AnimationFormat::Gif => 100.0 / animation::gif_delay(anim.fps) as f64,
-                crate::scene::AnimationFormat::Apng => anim.fps,
+                crate::scene::AnimationFormat::Apng
+                | crate::scene::AnimationFormat::Mp4
+                | crate::scene::AnimationFormat::Webm => anim.fps,
             },
             "bytes": bytes,
             "sha256": sha256,

@@ -208,6 +208,10 @@ pub enum AnimationFormat {
     Gif,
     /// Animated PNG (the frames' own colour type and bit depth).
     Apng,
+    /// MP4 video (H.264, yuv420p, `+faststart`), encoded by the `ffmpeg` program.
+    Mp4,
+    /// WebM video (VP9, yuv420p), encoded by the `ffmpeg` program.
+    Webm,
 }
 
 impl AnimationFormat {
@@ -216,6 +220,23 @@ impl AnimationFormat {
         match self {
             AnimationFormat::Gif => "gif",
             AnimationFormat::Apng => "apng",
+            AnimationFormat::Mp4 => "mp4",
+            AnimationFormat::Webm => "webm",
+        }
+    }
+
+    /// Whether the format is a video that `ffmpeg` encodes.
+    pub fn is_video(self) -> bool {
+        matches!(self, AnimationFormat::Mp4 | AnimationFormat::Webm)
+    }
+
+    /// The default and the largest `quality` (a constant rate factor: lower is
+    /// better and larger) of a video format: libx264's and libvpx-vp9's ranges.
+    pub fn quality_range(self) -> Option<(u32, u32)> {
+        match self {
+            AnimationFormat::Mp4 => Some((18, 51)),
+            AnimationFormat::Webm => Some((31, 63)),
+            _ => None,
         }
     }
 }
@@ -229,6 +250,11 @@ pub struct Animation {
     pub fps: f64,
     /// Loop forever (`true`) or play once.
     pub looping: bool,
+    /// The videos' constant rate factor (`quality`), `None` for each format's default.
+    pub quality: Option<u32>,
+    /// Play the frames forward, then backward without repeating the ends
+    /// (`ping_pong`, for rocking paths).
+    pub ping_pong: bool,
 }
 
 /// Image file format.

@@ -159,6 +159,8 @@ pub struct AnimationTable {
     pub fps: Sp<f64>,
     #[serde(rename = "loop")]
     pub looping: Sp<bool>,
+    pub quality: Sp<i64>,
+    pub ping_pong: Sp<bool>,
 }
 
 #[derive(Debug, Deserialize)]

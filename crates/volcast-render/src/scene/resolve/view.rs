@@ -420,14 +420,19 @@ impl Resolver<'_> {
             None => formats.push(AnimationFormat::Gif),
             Some(list) if list.get_ref().is_empty() => self.err(
                 list.span(),
-                "formats = []: expected a list of \"gif\" and/or \"apng\" (or leave out [animation])",
+                "formats = []: expected a list of \"gif\", \"apng\", \"mp4\" and \"webm\" (or leave out [animation])",
             ),
             Some(list) => {
                 for f in list.get_ref() {
                     let chosen = self.choice(
                         "formats",
                         &Some(f.clone()),
-                        &[("gif", AnimationFormat::Gif), ("apng", AnimationFormat::Apng)],
+                        &[
+                            ("gif", AnimationFormat::Gif),
+                            ("apng", AnimationFormat::Apng),
+                            ("mp4", AnimationFormat::Mp4),
+                            ("webm", AnimationFormat::Webm),
+                        ],
                         AnimationFormat::Gif,
                     );
                     if formats.contains(&chosen) {
@@ -451,10 +456,28 @@ impl Resolver<'_> {
                 "[animation] is assembled from the PNG frames: use format = \"png\" or \"png16\" (nrrd frames hold unquantised values)",
             );
         }
+        let quality = v.quality.as_ref().and_then(|q| {
+            let videos: Vec<AnimationFormat> =
+                formats.iter().copied().filter(|f| f.is_video()).collect();
+            let most = videos.iter().filter_map(|f| f.quality_range()).map(|r| r.1).min();
+            match most {
+                None => {
+                    self.err(q.span(), "`quality` is the videos' (formats \"mp4\" and \"webm\"): the GIF and APNG files are lossless");
+                    None
+                }
+                Some(most) if (0..=i64::from(most)).contains(q.get_ref()) => Some(*q.get_ref() as u32),
+                Some(most) => {
+                    self.err(q.span(), format!("quality = {}: expected a constant rate factor from 0 (best, largest) to {most} (mp4: 0-51, default 18; webm: 0-63, default 31)", q.get_ref()));
+                    None
+                }
+            }
+        });
         Animation {
             formats,
             fps,
             looping: v.looping.as_ref().is_none_or(|l| *l.get_ref()),
+            quality,
+            ping_pong: v.ping_pong.as_ref().is_some_and(|p| *p.get_ref()),
         }
     }
 
