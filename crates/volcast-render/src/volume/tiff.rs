@@ -608,7 +608,7 @@ impl TiffSpec {
             let c = get("channels")?.unwrap_or(1);
             let t = get("frames")?.unwrap_or(1);
             let images = get("images")?.unwrap_or(n);
-            let z = get("slices")?.unwrap_or(images / (c * t).max(1));
+            let z = get("slices")?.unwrap_or(images / c.saturating_mul(t));
             if t > 1 {
                 return Err(unsupported(
                         path,
