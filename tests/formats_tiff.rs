@@ -379,6 +379,15 @@ fn info_describes_a_tiff() {
     assert_eq!(f["compression"], "LZW");
     assert_eq!(f["unit"], "µm");
     assert_eq!(f["spacing z"], "spacing= (ImageJ)");
+    // a hyperstack: `info` describes its first channel, and says so
+    let o = volcast(
+        &root(),
+        &["info", "tests/fixtures/formats/tiff_hyper.tif", "--json"],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["fields"]["channel"], "0 of 2");
+    assert_eq!(j["fields"]["format"], "TIFF (ImageJ hyperstack, 2 channels)");
 }
 
 #[cfg(unix)]

@@ -271,13 +271,14 @@ impl FileFormat {
 impl VolumeSource {
     /// The source of a volume file named on the command line (`volcast info`): its
     /// format from the extension (NRRD when unknown); the first volume of a 4D NIfTI;
-    /// a folder is a DICOM series, unless it holds TIFF files (then a TIFF series, as
-    /// is a glob such as `slices/*.tif`).
+    /// the first channel of a multi-channel TIFF; a folder is a DICOM series, unless it
+    /// holds TIFF files (then a TIFF series, as is a glob such as `slices/*.tif`).
     pub fn from_path(path: &Path) -> Result<VolumeSource, VolumeError> {
         let tiff = |path: &Path| {
             VolumeSource::Tiff(tiff::TiffSpec {
                 path: path.to_path_buf(),
-                channel: None,
+                // channel 0 of 1 is every page: a single-channel file reads the same
+                channel: Some(0),
             })
         };
         if tiff::is_glob(path) || (path.is_dir() && tiff::holds_tiffs(path)) {

@@ -39,7 +39,7 @@ const MAX_PAGES: usize = 1 << 20;
 
 /// Largest tag value the crate may read (OME-XML descriptions of big files run to
 /// megabytes; strip offsets of a tall page are 8 bytes a row).
-const MAX_TAG_BYTES: usize = 64 << 20;
+const MAX_TAG_BYTES: usize = 16 << 20;
 
 /// A TIFF file, folder or glob and the channel to render.
 #[derive(Clone, Debug, PartialEq)]
