@@ -63,6 +63,12 @@ const PAIRS: &[(&str, &str, &str)] = &[
     ("tiff_hyper.tif", "tiff_hyper_c0_ref.nrrd", "channel = 0"),
     ("tiff_hyper.tif", "tiff_hyper_c1_ref.nrrd", "channel = 1"),
     ("tiff_ome.ome.tif", "tiff_ome_ref.nrrd", ""),
+    (
+        "tiff_ome_c2.ome.tif",
+        "tiff_ome_c2_c1_ref.nrrd",
+        "channel = 1",
+    ),
+    ("tiff_frames.tif", "tiff_frames_t1_ref.nrrd", "index = 1"),
     ("tiff_slices", "tiff_slices_ref.nrrd", "format = \"tiff\""),
     ("tiff_slices/*.tif", "tiff_slices_ref.nrrd", ""),
 ];
@@ -88,6 +94,9 @@ fn source(name: &str, lines: &str) -> VolumeSource {
             path: fixture(name),
             channel: lines
                 .strip_prefix("channel = ")
+                .map(|c| c.parse::<usize>().unwrap()),
+            index: lines
+                .strip_prefix("index = ")
                 .map(|c| c.parse::<usize>().unwrap()),
         });
     }

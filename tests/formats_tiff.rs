@@ -2,8 +2,9 @@
 //! (`tests/fixtures/formats/make_tiff.py`; the voxels, geometry and renders equal their
 //! reference NRRDs in `formats.rs`'s PAIRS): what tifffile reports of each file, the
 //! spacing and unit of the ImageJ description, resolution tags and OME-XML; channels
-//! chosen and refused by count; time series, colour, pages of another size, truncated
-//! and hostile files refused by name, quickly; a folder's files under `--confine`.
+//! and time-series frames chosen and refused by count; colour, pages of another size,
+//! truncated and hostile files refused by name, quickly; a folder's files under
+//! `--confine`.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -21,6 +22,7 @@ fn tiff(name: &str, channel: Option<usize>) -> VolumeSource {
     VolumeSource::Tiff(TiffSpec {
         path: fixture(name),
         channel,
+        index: None,
     })
 }
 
@@ -203,12 +205,36 @@ fn channels_are_chosen_and_counted() {
 }
 
 #[test]
-fn time_series_colour_and_damaged_files_are_refused_by_name() {
+fn a_time_series_shows_the_frame_of_its_index() {
+    let frames = |index| {
+        VolumeSource::Tiff(TiffSpec {
+            path: fixture("tiff_frames.tif"),
+            channel: None,
+            index,
+        })
+    };
+    let e = frames(None).header().unwrap_err().to_string();
+    assert!(
+        e.contains("tiff_frames.tif") && e.contains("2 frames") && e.contains("`index = 0` to 1"),
+        "{e}"
+    );
+    let e = frames(Some(2)).header().unwrap_err().to_string();
+    assert!(e.contains("index = 2 is out of range"), "{e}");
+    let h = frames(Some(1)).header().unwrap();
+    assert_eq!(field(&h.fields, "frame"), "1 of 2 (index)");
+    assert_eq!(h.sizes, [8, 6, 5]);
+    // OME: the frame and channel strides follow DimensionOrder
+    let h = tiff("tiff_ome_c2.ome.tif", Some(1)).header().unwrap();
+    assert_eq!(field(&h.fields, "format"), "OME-TIFF (2 channels)");
+    assert_eq!(
+        expected()["tiff_ome_c2.ome.tif"]["ome"]["DimensionOrder"],
+        "XYZCT"
+    );
+}
+
+#[test]
+fn colour_and_damaged_files_are_refused_by_name() {
     let cases: &[(&str, &[&str])] = &[
-        (
-            "tiff_frames.tif",
-            &["tiff_frames.tif", "frames=2", "time series come later"],
-        ),
         (
             "tiff_rgb.tif",
             &[
@@ -289,6 +315,7 @@ fn hostile_sizes_are_refused_before_allocating() {
         VolumeSource::Tiff(TiffSpec {
             path: p,
             channel: None,
+            index: None,
         })
     };
     // a sane page of 2 x 4 samples in its 16 bytes reads
@@ -343,6 +370,8 @@ fn scenes_choose_tiff_and_channel() {
     let path = |name: &str| format!("path = {:?}", fixture(name).display().to_string());
     let o = check(&format!("{}\nchannel = 1", path("tiff_hyper.tif")));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = check(&format!("{}\nindex = 1", path("tiff_frames.tif")));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let o = check(&format!("{}\nformat = \"tiff\"", path("tiff_slices")));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for (volume, needle) in [
@@ -387,7 +416,10 @@ fn info_describes_a_tiff() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["fields"]["channel"], "0 of 2");
-    assert_eq!(j["fields"]["format"], "TIFF (ImageJ hyperstack, 2 channels)");
+    assert_eq!(
+        j["fields"]["format"],
+        "TIFF (ImageJ hyperstack, 2 channels)"
+    );
 }
 
 #[cfg(unix)]

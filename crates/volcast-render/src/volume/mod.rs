@@ -271,7 +271,7 @@ impl FileFormat {
 impl VolumeSource {
     /// The source of a volume file named on the command line (`volcast info`): its
     /// format from the extension (NRRD when unknown); the first volume of a 4D NIfTI;
-    /// the first channel of a multi-channel TIFF; a folder is a DICOM series, unless it
+    /// the first channel and frame of a multi-channel TIFF time series; a folder is a DICOM series, unless it
     /// holds TIFF files (then a TIFF series, as is a glob such as `slices/*.tif`).
     pub fn from_path(path: &Path) -> Result<VolumeSource, VolumeError> {
         let tiff = |path: &Path| {
@@ -279,6 +279,7 @@ impl VolumeSource {
                 path: path.to_path_buf(),
                 // channel 0 of 1 is every page: a single-channel file reads the same
                 channel: Some(0),
+                index: Some(0),
             })
         };
         if tiff::is_glob(path) || (path.is_dir() && tiff::holds_tiffs(path)) {

@@ -10,7 +10,7 @@
 //!                    and enough of them for the page (a hostile size costs nothing)
 //!                    axes: the ImageJ description (images, channels, slices,
 //!                    frames), the OME-XML (SizeZ/C/T, DimensionOrder) or tifffile's
-//!                    shape; `channel = k` picks a channel; time series refused
+//!                    shape; `channel = k` picks a channel, `index = t` a frame
 //!                    spacing: ImageJ (1/XResolution, 1/YResolution, spacing, unit),
 //!                    OME PhysicalSizeX/Y/Z (converted to X's unit), resolution in
 //!                    centimetres; otherwise 1, and `info` says it is assumed
@@ -49,6 +49,8 @@ pub struct TiffSpec {
     pub path: PathBuf,
     /// `channel = k`: the channel of a multi-channel file (0-based).
     pub channel: Option<usize>,
+    /// `index = t`: the frame of a time series (ImageJ `frames`, OME `SizeT`; 0-based).
+    pub index: Option<usize>,
 }
 
 /// What one page's directory says.
@@ -529,6 +531,12 @@ impl TiffSpec {
                 self.path.display()
             )));
         }
+        if let Some(i) = self.index.filter(|&i| i > 0) {
+            return Err(VolumeError::Invalid(format!(
+                "{}: index = {i}, but a folder or glob of TIFFs is one volume (1 frame)",
+                self.path.display()
+            )));
+        }
         let first = read_file(&files[0])?;
         let mut slices = Vec::with_capacity(files.len());
         for f in &files {
@@ -594,146 +602,142 @@ impl TiffSpec {
         }
         let description = info.description.clone().unwrap_or_default();
         let mut fields = Vec::new();
-        // (slices, channels, and the strides of slice and channel: slice z of
-        // channel c is page `z * z_stride + c * c_stride`)
-        let (z_count, channels, [z_stride, c_stride]) = if let Some(ij) = imagej(&description) {
+        // slices, channels, frames, and the strides of each: slice z of channel c of
+        // frame t is page `z * strides[0] + c * strides[1] + t * strides[2]`
+        let (z_count, channels, frames, strides) = if let Some(ij) = imagej(&description) {
             let get = |k: &str| -> Result<Option<usize>, VolumeError> {
                 match ij.iter().find(|(key, _)| key == k) {
-                        None => Ok(None),
-                        Some((_, v)) => v.parse::<usize>().ok().filter(|&x| x >= 1).map(Some).ok_or_else(|| {
-                            header_err(path, format!("ImageJ description: `{k}={v}`: expected a whole number of at least 1"))
+                    None => Ok(None),
+                    Some((_, v)) => v
+                        .parse::<usize>()
+                        .ok()
+                        .filter(|&x| x >= 1)
+                        .map(Some)
+                        .ok_or_else(|| {
+                            header_err(
+                                path,
+                                format!("ImageJ description: `{k}={v}`: expected a whole number of at least 1"),
+                            )
                         }),
-                    }
+                }
             };
             let c = get("channels")?.unwrap_or(1);
             let t = get("frames")?.unwrap_or(1);
             let images = get("images")?.unwrap_or(n);
             let z = get("slices")?.unwrap_or(images / c.saturating_mul(t));
-            if t > 1 {
-                return Err(unsupported(
-                        path,
-                        format!("an ImageJ time series (frames={t}): volcast renders one volume; time series come later (save one frame, e.g. Image > Duplicate in Fiji)"),
-                    ));
-            }
-            if c.checked_mul(z) != Some(images) {
+            if c.checked_mul(z).and_then(|cz| cz.checked_mul(t)) != Some(images) {
                 return Err(header_err(
-                        path,
-                        format!("ImageJ description: channels={c} x slices={z} x frames={t} is not images={images}"),
-                    ));
+                    path,
+                    format!("ImageJ description: channels={c} x slices={z} x frames={t} is not images={images}"),
+                ));
             }
             if images != n {
                 return Err(unsupported(
-                        path,
-                        format!("the ImageJ description declares images={images}, but the file has {n} pages (ImageJ's layout of a single directory for files over 4 GiB is not read)"),
-                    ));
+                    path,
+                    format!("the ImageJ description declares images={images}, but the file has {n} pages (ImageJ's layout of a single directory for files over 4 GiB is not read)"),
+                ));
             }
-            fields.push((
-                "format".to_string(),
-                if c > 1 {
-                    format!("TIFF (ImageJ hyperstack, {c} channels)")
-                } else {
-                    "TIFF (ImageJ)".into()
-                },
-            ));
-            (z, c, [c, 1])
+            let kind = match (c > 1, t > 1) {
+                (false, false) => "TIFF (ImageJ)".to_string(),
+                (true, false) => format!("TIFF (ImageJ hyperstack, {c} channels)"),
+                (false, true) => format!("TIFF (ImageJ hyperstack, {t} frames)"),
+                (true, true) => format!("TIFF (ImageJ hyperstack, {c} channels, {t} frames)"),
+            };
+            fields.push(("format".to_string(), kind));
+            // ImageJ's page order: channel fastest, then slice, then frame
+            (z, c, t, [c, 1, c * z])
         } else if let Some(px) = ome_pixels(&description) {
             let get = |k: &str| -> Result<usize, VolumeError> {
                 match px.iter().find(|(key, _)| key == k) {
-                        None => Ok(1),
-                        Some((_, v)) => v.parse::<usize>().ok().filter(|&x| x >= 1).ok_or_else(|| {
-                            header_err(path, format!("OME-XML: Pixels {k}=\"{v}\": expected a whole number of at least 1"))
-                        }),
-                    }
+                    None => Ok(1),
+                    Some((_, v)) => v.parse::<usize>().ok().filter(|&x| x >= 1).ok_or_else(|| {
+                        header_err(
+                            path,
+                            format!("OME-XML: Pixels {k}=\"{v}\": expected a whole number of at least 1"),
+                        )
+                    }),
+                }
             };
             let (z, c, t) = (get("SizeZ")?, get("SizeC")?, get("SizeT")?);
             let order = px
                 .iter()
                 .find(|(k, _)| k == "DimensionOrder")
                 .map_or("XYZCT".to_string(), |(_, v)| v.clone());
-            if t > 1 {
-                return Err(unsupported(
-                        path,
-                        format!("an OME-TIFF time series (SizeT=\"{t}\"): volcast renders one volume; time series come later"),
-                    ));
-            }
-            if z.checked_mul(c).is_none_or(|zc| zc > n) {
+            let planes = z.checked_mul(c).and_then(|zc| zc.checked_mul(t));
+            if planes.is_none_or(|p| p > n) {
                 return Err(header_err(
                     path,
-                    format!("OME-XML: SizeZ={z} x SizeC={c} planes, but the file has {n} pages"),
+                    format!("OME-XML: SizeZ={z} x SizeC={c} x SizeT={t} planes, but the file has {n} pages"),
                 ));
             }
-            // the page of (z, c) by DimensionOrder (`XY` then the fastest of Z, C, T);
-            // T is 1, so only the order of Z against C matters
-            let z_first = match order.find('Z').zip(order.find('C')) {
-                    Some((iz, ic)) if order.starts_with("XY") => iz < ic,
-                    _ => {
-                        return Err(header_err(
-                            path,
-                            format!("OME-XML: DimensionOrder=\"{order}\": expected XY followed by Z, C and T in some order"),
-                        ))
-                    }
-                };
-            fields.push((
-                "format".to_string(),
-                if c > 1 {
-                    format!("OME-TIFF ({c} channels)")
-                } else {
-                    "OME-TIFF".into()
-                },
-            ));
-            if z * c < n {
+            let planes = planes.unwrap_or(n);
+            // DimensionOrder is `XY` then Z, C and T, the fastest first: each axis's
+            // stride is the product of the sizes of those before it
+            let rest: Vec<char> = order.chars().skip(2).collect();
+            let mut sorted = rest.clone();
+            sorted.sort_unstable();
+            if !order.starts_with("XY") || sorted != ['C', 'T', 'Z'] {
+                return Err(header_err(
+                    path,
+                    format!("OME-XML: DimensionOrder=\"{order}\": expected XY followed by Z, C and T in some order"),
+                ));
+            }
+            let size = |a: char| match a {
+                'Z' => z,
+                'C' => c,
+                _ => t,
+            };
+            let stride = |a: char| {
+                rest.iter()
+                    .take_while(|&&b| b != a)
+                    .map(|&b| size(b))
+                    .product::<usize>()
+            };
+            let kind = match (c > 1, t > 1) {
+                (false, false) => "OME-TIFF".to_string(),
+                (true, false) => format!("OME-TIFF ({c} channels)"),
+                (false, true) => format!("OME-TIFF ({t} frames)"),
+                (true, true) => format!("OME-TIFF ({c} channels, {t} frames)"),
+            };
+            fields.push(("format".to_string(), kind));
+            if planes < n {
                 fields.push((
                     "pages".into(),
-                    format!("{n}, of which the first image's {} are read", z * c),
+                    format!("{n}, of which the first image's {planes} are read"),
                 ));
             }
-            (z, c, if z_first { [1, z] } else { [c, 1] })
+            (z, c, t, [stride('Z'), stride('C'), stride('T')])
         } else {
             if let Some(shape) = tifffile_shape(&description) {
                 // the axes beyond the page's rows and columns
                 let outer: Vec<usize> = shape[..shape.len().saturating_sub(2)].to_vec();
                 if outer.iter().filter(|&&s| s > 1).count() > 1 {
                     return Err(unsupported(
-                            path,
-                            format!("tifffile's shape {shape:?} has more than one axis beyond rows and columns, and the file does not name them: write it with imagej=True or as OME-TIFF, so that channels and slices are told apart"),
-                        ));
+                        path,
+                        format!("tifffile's shape {shape:?} has more than one axis beyond rows and columns, and the file does not name them: write it with imagej=True or as OME-TIFF, so that channels and slices are told apart"),
+                    ));
                 }
             }
             fields.push(("format".to_string(), "TIFF".into()));
-            (n, 1, [1, 0])
+            (n, 1, 1, [1, 0, 0])
         };
-        let channel = match (self.channel, channels) {
-            (None, 1) => 0,
-            (None, c) => {
-                return Err(VolumeError::Invalid(format!(
-                "{}: the file has {c} channels: choose one with `channel = 0` to {} in [volume]",
-                path.display(),
-                c - 1
-            )))
-            }
-            (Some(k), c) if k >= c => {
-                return Err(VolumeError::Invalid(format!(
-                    "{}: channel = {k} is out of range: the file has {c} channel{} (channel = 0{})",
-                    path.display(),
-                    if c == 1 { "" } else { "s" },
-                    if c == 1 {
-                        String::new()
-                    } else {
-                        format!(" to {}", c - 1)
-                    }
-                )))
-            }
-            (Some(k), _) => k,
-        };
+        let channel = choose(path, "channel", "channel", self.channel, channels)?;
+        let frame = choose(path, "index", "frame", self.index, frames)?;
         if fields.iter().all(|(k, _)| k != "pages") {
             fields.push(("pages".into(), n.to_string()));
         }
         if channels > 1 {
             fields.push(("channel".into(), format!("{channel} of {channels}")));
         }
+        if frames > 1 {
+            fields.push(("frame".into(), format!("{frame} of {frames} (index)")));
+        }
         fields.push(("compression".into(), compression_name(first.compression).0));
         let slices = (0..z_count)
-            .map(|k| (path.clone(), k * z_stride + channel * c_stride))
+            .map(|k| {
+                let page = k * strides[0] + channel * strides[1] + frame * strides[2];
+                (path.clone(), page)
+            })
             .collect();
         let spacing = spacing(path, &info, Some(&description), &mut fields)?;
         Ok(Layout {
@@ -904,6 +908,36 @@ fn decoded_bytes(d: &mut DecodingResult, ty: ScalarType) -> Option<&[u8]> {
 /// The bytes of a slice of primitive numbers.
 fn bytes_of<T: super::Voxel>(v: &[T]) -> &[u8] {
     super::Voxels::from_slice(v).as_bytes()
+}
+
+/// The `key = k` of an axis of `count` entries (`what`: "channel", "frame"): the one
+/// there is, or the one chosen, in range.
+fn choose(
+    path: &Path,
+    key: &str,
+    what: &str,
+    chosen: Option<usize>,
+    count: usize,
+) -> Result<usize, VolumeError> {
+    let plural = if count == 1 { "" } else { "s" };
+    match chosen {
+        None if count == 1 => Ok(0),
+        None => Err(VolumeError::Invalid(format!(
+            "{}: the file has {count} {what}s: choose one with `{key} = 0` to {} in [volume]",
+            path.display(),
+            count - 1
+        ))),
+        Some(k) if k >= count => Err(VolumeError::Invalid(format!(
+            "{}: {key} = {k} is out of range: the file has {count} {what}{plural} ({key} = 0{})",
+            path.display(),
+            if count == 1 {
+                String::new()
+            } else {
+                format!(" to {}", count - 1)
+            }
+        ))),
+        Some(k) => Ok(k),
+    }
 }
 
 /// tifffile's `{"shape": [...]}` description, if that is what it is.

@@ -67,7 +67,7 @@ impl Resolver<'_> {
                 if let Some(i) = &v.index {
                     self.err(
                         i.span(),
-                        "`index` is only used by NIfTI files (.nii, .nii.gz)",
+                        "`index` is only used by NIfTI files (.nii, .nii.gz) and TIFF time series",
                     );
                 }
                 if let Some(s) = &v.series {
@@ -323,19 +323,20 @@ impl Resolver<'_> {
         );
         let index = v.index.as_ref().and_then(|i| {
             let n = *i.get_ref();
-            if format == Some(Format::Nifti) && !(0..=i64::from(i16::MAX)).contains(&n) {
+            let frames = matches!(format, Some(Format::Nifti | Format::Tiff));
+            if frames && !(0..=i64::from(i16::MAX)).contains(&n) {
                 self.err(
                     i.span(),
-                    format!("index = {n}: expected the number of a volume of the 4D file, from 0"),
+                    format!("index = {n}: expected the number of a volume of the 4D file (a frame of a TIFF time series), from 0"),
                 );
             }
             usize::try_from(n).ok()
         });
-        if format != Some(Format::Nifti) {
+        if !matches!(format, Some(Format::Nifti | Format::Tiff)) {
             if let Some(i) = &v.index {
                 self.err(
                     i.span(),
-                    "`index` is only used by NIfTI files (.nii, .nii.gz): it chooses a volume of a 4D file",
+                    "`index` is only used by NIfTI files (.nii, .nii.gz) and TIFF time series: it chooses a volume of a 4D file",
                 );
             }
         }
@@ -398,7 +399,11 @@ impl Resolver<'_> {
             }
             Some(Format::Tiff) => {
                 self.not_for("by TIFF files (their tags describe the data)", raw_keys);
-                Some(VolumeSource::Tiff(TiffSpec { path, channel }))
+                Some(VolumeSource::Tiff(TiffSpec {
+                    path,
+                    channel,
+                    index,
+                }))
             }
             Some(Format::Raw) => self.raw(v, path, p.span()),
         }
