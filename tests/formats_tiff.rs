@@ -269,6 +269,22 @@ fn colour_and_damaged_files_are_refused_by_name() {
             assert!(text.contains(n), "{name}: expected {n:?} in {text}");
         }
     }
+    // WhiteIsZero (the fifth entry's value, PhotometricInterpretation, set to 0)
+    let tmp = tempfile::tempdir().unwrap();
+    let mut bytes = hostile(2, 4, 1, 0);
+    assert_eq!(u16::from_le_bytes([bytes[58], bytes[59]]), 262);
+    bytes[66] = 0;
+    let p = tmp.path().join("white.tif");
+    std::fs::write(&p, bytes).unwrap();
+    let e = VolumeSource::Tiff(TiffSpec {
+        path: p,
+        channel: None,
+        index: None,
+    })
+    .header()
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("white.tif") && e.contains("WhiteIsZero"), "{e}");
     // a file that is not a TIFF at all
     let e = tiff("u8.mha", None).header().unwrap_err().to_string();
     assert!(e.contains("u8.mha") && e.contains("not a TIFF file"), "{e}");

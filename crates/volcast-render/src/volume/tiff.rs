@@ -176,14 +176,21 @@ fn read_page(
     let (w, h) = d.dimensions().map_err(err)?;
     let samples = uint(d, Tag::SamplesPerPixel)?.map_or(1, |v| v.first().copied().unwrap_or(1));
     let photometric = uint(d, Tag::PhotometricInterpretation)?.and_then(|v| v.first().copied());
-    let grey = matches!(
-        photometric
-            .and_then(|p| u16::try_from(p).ok())
-            .and_then(PhotometricInterpretation::from_u16),
-        None | Some(
-            PhotometricInterpretation::BlackIsZero | PhotometricInterpretation::WhiteIsZero
+    if photometric == Some(0) {
+        // the crate inverts WhiteIsZero samples for some layouts and not others
+        return Err(unsupported(
+            path,
+            format!("page {page}: PhotometricInterpretation WhiteIsZero (0) is not supported: volcast reads BlackIsZero greyscale (invert the image first)"),
+        ));
+    }
+    let grey = photometric.is_none_or(|p| {
+        matches!(
+            u16::try_from(p)
+                .ok()
+                .and_then(PhotometricInterpretation::from_u16),
+            Some(PhotometricInterpretation::BlackIsZero)
         )
-    );
+    });
     if !grey || samples != 1 {
         let name = match photometric {
             Some(2) => "RGB".to_string(),
