@@ -272,7 +272,7 @@ impl VolumeSource {
     /// The source of a volume file named on the command line (`volcast info`): its
     /// format from the extension (NRRD when unknown); the first volume of a 4D NIfTI;
     /// the first channel and frame of a multi-channel TIFF time series; a folder is a DICOM series, unless it
-    /// holds TIFF files (then a TIFF series, as is a glob such as `slices/*.tif`).
+    /// holds TIFF files (then a TIFF series, as is a glob of them, `slices/*.tif`).
     pub fn from_path(path: &Path) -> Result<VolumeSource, VolumeError> {
         let tiff = |path: &Path| {
             VolumeSource::Tiff(tiff::TiffSpec {
@@ -282,7 +282,9 @@ impl VolumeSource {
                 index: Some(0),
             })
         };
-        if tiff::is_glob(path) || (path.is_dir() && tiff::holds_tiffs(path)) {
+        let tiff_glob =
+            tiff::is_glob(path) && FileFormat::from_path(path) == Some(FileFormat::Tiff);
+        if tiff_glob || (path.is_dir() && tiff::holds_tiffs(path)) {
             return Ok(tiff(path));
         }
         if path.is_dir() {
