@@ -1,5 +1,6 @@
 //! NIfTI-1 and MetaImage input (issue 9, item 2), against files written by nibabel and
-//! SimpleITK (`tests/fixtures/formats/make_formats.py`): the voxels, sizes and types
+//! SimpleITK (`tests/fixtures/formats/make_formats.py`), and TIFF stacks written by
+//! tifffile (`make_tiff.py`; their own tests are in `formats_tiff.rs`): the voxels, sizes and types
 //! equal those of a reference NRRD written beside each file by the script; the
 //! geometry equals the affine nibabel and SimpleITK report; each renders the bytes of
 //! its reference NRRD; `scl_slope`/`scl_inter` fold into the window; damaged files,
@@ -10,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use volcast::volume::dicom::DicomSpec;
 use volcast::volume::nifti::NiftiSpec;
+use volcast::volume::tiff::TiffSpec;
 use volcast::volume::{Limits, VolumeError, VolumeSource};
 
 use crate::util::{rendered_nrrds, root, volcast};
@@ -52,6 +54,23 @@ const PAIRS: &[(&str, &str, &str)] = &[
     ("f32_zlib.mha", "f32_zlib_ref.nrrd", ""),
     ("dicom_ct", "dicom_ct_a_ref.nrrd", DICOM_A),
     ("dicom_ct", "dicom_ct_b_ref.nrrd", DICOM_B),
+    // TIFF stacks written by tifffile (make_tiff.py)
+    ("tiff_u8.tif", "tiff_u8_ref.nrrd", ""),
+    ("tiff_u16_lzw.tif", "tiff_u16_lzw_ref.nrrd", ""),
+    ("tiff_i16.tif", "tiff_i16_ref.nrrd", ""),
+    ("tiff_f32_deflate.tif", "tiff_f32_deflate_ref.nrrd", ""),
+    ("tiff_packbits.tif", "tiff_packbits_ref.nrrd", ""),
+    ("tiff_hyper.tif", "tiff_hyper_c0_ref.nrrd", "channel = 0"),
+    ("tiff_hyper.tif", "tiff_hyper_c1_ref.nrrd", "channel = 1"),
+    ("tiff_ome.ome.tif", "tiff_ome_ref.nrrd", ""),
+    (
+        "tiff_ome_c2.ome.tif",
+        "tiff_ome_c2_c1_ref.nrrd",
+        "channel = 1",
+    ),
+    ("tiff_frames.tif", "tiff_frames_t1_ref.nrrd", "index = 1"),
+    ("tiff_slices", "tiff_slices_ref.nrrd", "format = \"tiff\""),
+    ("tiff_slices/*.tif", "tiff_slices_ref.nrrd", ""),
 ];
 
 /// The two series of `dicom_ct`: int16 with one rescale (-1024 HU), and uint16 whose
@@ -69,6 +88,17 @@ fn dicom(folder: &str, series: Option<&str>) -> VolumeSource {
 fn source(name: &str, lines: &str) -> VolumeSource {
     if let Some(series) = lines.split("series = ").nth(1) {
         return dicom(name, Some(series.trim_matches('"')));
+    }
+    if name.starts_with("tiff_") {
+        return VolumeSource::Tiff(TiffSpec {
+            path: fixture(name),
+            channel: lines
+                .strip_prefix("channel = ")
+                .map(|c| c.parse::<usize>().unwrap()),
+            index: lines
+                .strip_prefix("index = ")
+                .map(|c| c.parse::<usize>().unwrap()),
+        });
     }
     if name.ends_with(".mha") || name.ends_with(".mhd") {
         VolumeSource::MetaImage(fixture(name))

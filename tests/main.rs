@@ -16,6 +16,7 @@ mod exit_codes;
 mod fit;
 mod formats;
 mod formats_hostile;
+mod formats_tiff;
 mod fuzz;
 mod geometry;
 mod hard_cases;

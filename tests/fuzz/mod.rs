@@ -1,6 +1,6 @@
 //! A short, seeded fuzz run through the library's entry points (issue 10, item 9):
 //! mutated NRRD fixtures through the reader (header, storage, load, statistics), the
-//! same for the NIfTI and MetaImage fixtures (issue 9), and
+//! same for the NIfTI, MetaImage and TIFF fixtures (issues 9 and 46), and
 //! mutated example scenes through the scene parser, the header and the plan (what
 //! `volcast check` does), about two seconds each, every panic caught and reported
 //! with the case that caused it, and a case that raises the process's peak resident

@@ -632,7 +632,7 @@ pub fn corpus(kind: Kind, root: &Path) -> Vec<Seed> {
         Kind::Formats => {
             seeds.extend(read_dir(
                 root.join("tests/fixtures/formats"),
-                &["nii", "gz", "mha", "mhd"],
+                &["nii", "gz", "mha", "mhd", "tif"],
             ));
             // DICOM slices: a case is one slice in a folder of its own (see `place`)
             seeds.extend(read_dir(

@@ -67,6 +67,8 @@ pub struct VolumeTable {
     pub index: Sp<i64>,
     // DICOM
     pub series: Sp<String>,
+    // multi-channel TIFF
+    pub channel: Sp<i64>,
     // raw
     // numbers, so that `4e9` is reported as too large rather than as a float
     pub sizes: Sp<Vec<f64>>,

@@ -87,8 +87,11 @@ pub fn check_source(source: &VolumeSource, root: &Root) -> Result<(), VolumeErro
     let _scope = Scope::enter(root);
     let files = source.input_files()?;
     // the first file of the others is the volume's path, checked above; a DICOM
-    // series lists only its slices
-    let skip = usize::from(!matches!(source, VolumeSource::Dicom(_)));
+    // series and a TIFF folder or glob list only their slices' files
+    let skip = usize::from(!matches!(
+        source,
+        VolumeSource::Dicom(_) | VolumeSource::Tiff(_)
+    ));
     for f in files.iter().skip(skip) {
         root.check_file(f, &format!("a data file named by {}", path.display()))?;
     }

@@ -27,6 +27,7 @@ pub mod scalar;
 pub mod stats;
 mod stream;
 pub mod synthetic;
+pub mod tiff;
 
 use std::path::{Path, PathBuf};
 
@@ -177,6 +178,9 @@ pub enum VolumeSource {
     MetaImage(PathBuf),
     /// A folder of DICOM slices (`format = "dicom"`) and the series to render.
     Dicom(dicom::DicomSpec),
+    /// A TIFF stack: a multi-page file, or a folder or glob of single-page files
+    /// (`format = "tiff"`), and the channel to render.
+    Tiff(tiff::TiffSpec),
     /// A headerless file described by the scene.
     Raw(raw::RawSpec),
     /// An analytic field sampled on a grid spanning [-1, 1]^3.
@@ -241,6 +245,8 @@ pub enum FileFormat {
     Nifti,
     /// `.mha`, `.mhd`
     MetaImage,
+    /// `.tif`, `.tiff` (and `.ome.tif`)
+    Tiff,
 }
 
 impl FileFormat {
@@ -254,6 +260,8 @@ impl FileFormat {
             Some(FileFormat::Nifti)
         } else if ext(".mha") || ext(".mhd") {
             Some(FileFormat::MetaImage)
+        } else if ext(".tif") || ext(".tiff") {
+            Some(FileFormat::Tiff)
         } else {
             None
         }
@@ -263,8 +271,22 @@ impl FileFormat {
 impl VolumeSource {
     /// The source of a volume file named on the command line (`volcast info`): its
     /// format from the extension (NRRD when unknown); the first volume of a 4D NIfTI;
-    /// a folder is a DICOM series.
+    /// the first channel and frame of a multi-channel TIFF time series; a folder is a DICOM series, unless it
+    /// holds TIFF files (then a TIFF series, as is a glob of them, `slices/*.tif`).
     pub fn from_path(path: &Path) -> Result<VolumeSource, VolumeError> {
+        let tiff = |path: &Path| {
+            VolumeSource::Tiff(tiff::TiffSpec {
+                path: path.to_path_buf(),
+                // channel 0 of 1 is every page: a single-channel file reads the same
+                channel: Some(0),
+                index: Some(0),
+            })
+        };
+        let tiff_glob =
+            tiff::is_glob(path) && FileFormat::from_path(path) == Some(FileFormat::Tiff);
+        if tiff_glob || (path.is_dir() && tiff::holds_tiffs(path)) {
+            return Ok(tiff(path));
+        }
         if path.is_dir() {
             return Ok(VolumeSource::Dicom(dicom::DicomSpec {
                 dir: path.to_path_buf(),
@@ -280,6 +302,7 @@ impl VolumeSource {
                 })
             }
             Some(FileFormat::MetaImage) => VolumeSource::MetaImage(path.to_path_buf()),
+            Some(FileFormat::Tiff) => tiff(path),
             Some(FileFormat::Nrrd) | None => VolumeSource::Nrrd(path.to_path_buf()),
         })
     }
@@ -291,6 +314,7 @@ impl VolumeSource {
             VolumeSource::Nifti(spec) => spec.header(),
             VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }.header(),
             VolumeSource::Dicom(spec) => spec.header(),
+            VolumeSource::Tiff(spec) => spec.header(),
             VolumeSource::Raw(spec) => spec.header(),
             VolumeSource::Synthetic(s) => Ok(s.header()),
         }
@@ -307,6 +331,7 @@ impl VolumeSource {
                 .load_hashed(limits, false)
                 .map(|(v, _)| v),
             VolumeSource::Dicom(spec) => spec.load_hashed(limits, false).map(|(v, _)| v),
+            VolumeSource::Tiff(spec) => spec.load_hashed(limits, false).map(|(v, _)| v),
             VolumeSource::Raw(spec) => spec.load(limits),
             VolumeSource::Synthetic(s) => s.load(limits),
         }
@@ -323,6 +348,7 @@ impl VolumeSource {
             VolumeSource::Nifti(spec) => spec.storage(),
             VolumeSource::MetaImage(path) => metaimage::MetaSpec { path }.storage(),
             VolumeSource::Dicom(spec) => spec.storage(),
+            VolumeSource::Tiff(spec) => spec.storage(),
             VolumeSource::Raw(spec) => spec.storage(),
             VolumeSource::Synthetic(s) => Ok(Storage::Read {
                 bytes: s.header().data_bytes(),
@@ -340,7 +366,8 @@ impl VolumeSource {
     }
 
     /// Every file a load reads: a NRRD or MetaImage header first, then its data
-    /// files; the NIfTI or raw file; each slice of a DICOM series; none for a
+    /// files; the NIfTI or raw file; each slice of a DICOM series; the TIFF file, or
+    /// each file of a TIFF folder or glob; none for a
     /// synthetic field. Reads only the headers.
     pub fn input_files(&self) -> Result<Vec<PathBuf>, VolumeError> {
         Ok(match self {
@@ -348,6 +375,7 @@ impl VolumeSource {
             VolumeSource::Nifti(spec) => vec![spec.path.clone()],
             VolumeSource::MetaImage(path) => metaimage::input_files(path)?,
             VolumeSource::Dicom(spec) => spec.input_files()?,
+            VolumeSource::Tiff(spec) => spec.input_files()?,
             VolumeSource::Raw(spec) => vec![spec.path.clone()],
             VolumeSource::Synthetic(_) => Vec::new(),
         })
@@ -373,6 +401,7 @@ impl VolumeSource {
                 metaimage::MetaSpec { path }.load_hashed(limits, true)?
             }
             VolumeSource::Dicom(spec) => spec.load_hashed(limits, true)?,
+            VolumeSource::Tiff(spec) => spec.load_hashed(limits, true)?,
             VolumeSource::Raw(spec) => spec.load_hashed(limits, true)?,
             VolumeSource::Synthetic(s) => (s.load(limits)?, None),
         };
@@ -397,6 +426,7 @@ impl VolumeSource {
             VolumeSource::Nifti(n) => Some(&n.path),
             VolumeSource::MetaImage(p) => Some(p),
             VolumeSource::Dicom(d) => Some(&d.dir),
+            VolumeSource::Tiff(t) => Some(&t.path),
             VolumeSource::Raw(r) => Some(&r.path),
             VolumeSource::Synthetic(_) => None,
         }

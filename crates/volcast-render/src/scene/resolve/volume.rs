@@ -1,5 +1,5 @@
-//! `[volume]`: a volume file (NRRD, NIfTI, MetaImage), a DICOM folder, a raw file or a
-//! synthetic field, its window and crop.
+//! `[volume]`: a volume file (NRRD, NIfTI, MetaImage, TIFF), a DICOM folder, a TIFF
+//! folder or glob, a raw file or a synthetic field, its window and crop.
 
 use std::ops::Range;
 use std::path::PathBuf;
@@ -14,6 +14,7 @@ use crate::volume::dicom::DicomSpec;
 use crate::volume::nifti::NiftiSpec;
 use crate::volume::raw::RawSpec;
 use crate::volume::synthetic::Field;
+use crate::volume::tiff::TiffSpec;
 use crate::volume::FileFormat;
 use crate::volume::{ScalarType, Synthetic, VolumeSource};
 
@@ -24,6 +25,7 @@ enum Format {
     Nifti,
     MetaImage,
     Dicom,
+    Tiff,
     Raw,
 }
 
@@ -33,6 +35,7 @@ impl From<FileFormat> for Format {
             FileFormat::Nrrd => Format::Nrrd,
             FileFormat::Nifti => Format::Nifti,
             FileFormat::MetaImage => Format::MetaImage,
+            FileFormat::Tiff => Format::Tiff,
         }
     }
 }
@@ -56,7 +59,7 @@ impl Resolver<'_> {
                 placeholder
             }
             (None, None) => {
-                self.err(t.span(), "[volume] needs `path` (a .nrrd/.nhdr, .nii/.nii.gz, .mha/.mhd or raw file) or `synthetic` (gaussian, ball, sphere-distance, marschner-lobb, blobs)");
+                self.err(t.span(), "[volume] needs `path` (a .nrrd/.nhdr, .nii/.nii.gz, .mha/.mhd, .tif/.tiff or raw file) or `synthetic` (gaussian, ball, sphere-distance, marschner-lobb, blobs)");
                 placeholder
             }
             (None, Some(s)) => {
@@ -64,13 +67,19 @@ impl Resolver<'_> {
                 if let Some(i) = &v.index {
                     self.err(
                         i.span(),
-                        "`index` is only used by NIfTI files (.nii, .nii.gz)",
+                        "`index` is only used by NIfTI files (.nii, .nii.gz) and TIFF time series",
                     );
                 }
                 if let Some(s) = &v.series {
                     self.err(
                         s.span(),
                         "`series` is only used by DICOM folders (format = \"dicom\")",
+                    );
+                }
+                if let Some(c) = &v.channel {
+                    self.err(
+                        c.span(),
+                        "`channel` is only used by multi-channel TIFF files",
                     );
                 }
                 if let Some(f) = &v.format {
@@ -307,25 +316,27 @@ impl Resolver<'_> {
                 ("nifti", Some(Format::Nifti)),
                 ("metaimage", Some(Format::MetaImage)),
                 ("dicom", Some(Format::Dicom)),
+                ("tiff", Some(Format::Tiff)),
                 ("raw", Some(Format::Raw)),
             ],
             by_name,
         );
         let index = v.index.as_ref().and_then(|i| {
             let n = *i.get_ref();
-            if format == Some(Format::Nifti) && !(0..=i64::from(i16::MAX)).contains(&n) {
+            let frames = matches!(format, Some(Format::Nifti | Format::Tiff));
+            if frames && !(0..=i64::from(i16::MAX)).contains(&n) {
                 self.err(
                     i.span(),
-                    format!("index = {n}: expected the number of a volume of the 4D file, from 0"),
+                    format!("index = {n}: expected the number of a volume of the 4D file (a frame of a TIFF time series), from 0"),
                 );
             }
             usize::try_from(n).ok()
         });
-        if format != Some(Format::Nifti) {
+        if !matches!(format, Some(Format::Nifti | Format::Tiff)) {
             if let Some(i) = &v.index {
                 self.err(
                     i.span(),
-                    "`index` is only used by NIfTI files (.nii, .nii.gz): it chooses a volume of a 4D file",
+                    "`index` is only used by NIfTI files (.nii, .nii.gz) and TIFF time series: it chooses a volume of a 4D file",
                 );
             }
         }
@@ -337,10 +348,29 @@ impl Resolver<'_> {
                 );
             }
         }
+        if format != Some(Format::Tiff) {
+            if let Some(c) = &v.channel {
+                self.err(
+                    c.span(),
+                    "`channel` is only used by TIFF files (.tif, .tiff, format = \"tiff\"): it chooses a channel of a multi-channel file",
+                );
+            }
+        }
+        let channel = v.channel.as_ref().and_then(|c| {
+            let n = *c.get_ref();
+            let k = usize::try_from(n).ok().filter(|&k| k <= u16::MAX as usize);
+            if k.is_none() && format == Some(Format::Tiff) {
+                self.err(
+                    c.span(),
+                    format!("channel = {n}: expected the number of a channel of the file, from 0"),
+                );
+            }
+            k
+        });
         match format {
             None => {
                 self.err(p.span(), format!(
-                    "cannot tell the format of \"{}\": use a .nrrd/.nhdr, .nii/.nii.gz or .mha/.mhd file, or set format = \"raw\" with sizes and type, or format = \"dicom\" for a folder of DICOM slices",
+                    "cannot tell the format of \"{}\": use a .nrrd/.nhdr, .nii/.nii.gz, .mha/.mhd or .tif/.tiff file, or set format = \"raw\" with sizes and type, format = \"dicom\" for a folder of DICOM slices, or format = \"tiff\" for a folder of TIFF slices",
                     p.get_ref()
                 ));
                 None
@@ -365,6 +395,14 @@ impl Resolver<'_> {
                 Some(VolumeSource::Dicom(DicomSpec {
                     dir: path,
                     series: v.series.as_ref().map(|s| s.get_ref().clone()),
+                }))
+            }
+            Some(Format::Tiff) => {
+                self.not_for("by TIFF files (their tags describe the data)", raw_keys);
+                Some(VolumeSource::Tiff(TiffSpec {
+                    path,
+                    channel,
+                    index,
                 }))
             }
             Some(Format::Raw) => self.raw(v, path, p.span()),
