@@ -768,3 +768,42 @@ fn the_shipped_nifti_head_is_the_shipped_nrrd_head() {
         assert!(p == q, "{file} differs");
     }
 }
+
+/// `info` prints what a file stored in single precision as that number: the
+/// NIfTI head's spacing 3.2 (stored as float32), a TIFF's float32 range -0.2 .. 2.2,
+/// not their doubles 3.200000047683716 and -0.20000000298023224; `--json` keeps the
+/// doubles.
+#[test]
+fn info_prints_single_precision_values_as_the_file_stored_them() {
+    let o = volcast(&root(), &["info", "data/ct_head_vtk_quarter.nii.gz"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("spacing    3.2 3.2 1.5\n"), "{text}");
+    assert!(
+        text.contains("axes       (3.2, 0, 0) (0, 3.2, 0) (0, 0, 1.5)\n"),
+        "{text}"
+    );
+    let tiff = std::fs::read_to_string(fixture("tiff.json")).unwrap();
+    let e: serde_json::Value = serde_json::from_str(&tiff).unwrap();
+    let name = e
+        .as_object()
+        .unwrap()
+        .iter()
+        .find(|(_, v)| v["min"].as_f64() == Some(f64::from(-0.2f32)))
+        .map(|(k, _)| k.clone())
+        .expect("a float32 TIFF fixture with minimum -0.2");
+    let o = volcast(
+        &root(),
+        &["info", &format!("tests/fixtures/formats/{name}")],
+    );
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("range      -0.2 .. 2.2 (mean"),
+        "{name}: {text}"
+    );
+    let o = volcast(
+        &root(),
+        &["info", "data/ct_head_vtk_quarter.nii.gz", "--json"],
+    );
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["spacing"][0].as_f64(), Some(f64::from(3.2f32)));
+}

@@ -129,12 +129,16 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
 }
 
 /// `x` as Rust prints it (the shortest form that reads back), in exponent form
-/// where that would be a long run of zeros.
+/// where that would be a long run of zeros; a value a file stored in single
+/// precision prints as that number (3.2, not its double 3.200000047683716).
 fn num(x: f64) -> String {
-    if x == 0.0 || !x.is_finite() || (1e-6..1e15).contains(&x.abs()) {
-        format!("{x}")
-    } else {
-        format!("{x:e}")
+    let plain = x == 0.0 || !x.is_finite() || (1e-6..1e15).contains(&x.abs());
+    let single = x.is_finite() && f64::from(x as f32) == x;
+    match (single, plain) {
+        (true, true) => format!("{}", x as f32),
+        (true, false) => format!("{:e}", x as f32),
+        (false, true) => format!("{x}"),
+        (false, false) => format!("{x:e}"),
     }
 }
 
