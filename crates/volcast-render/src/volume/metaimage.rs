@@ -18,6 +18,7 @@
 //! (ITK's direction columns). World coordinates are the file's (ITK's LPS), not
 //! converted.
 
+use crate::volume::errors::unsupported;
 use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
@@ -68,13 +69,6 @@ fn header_err(path: &Path, line: usize, message: String) -> VolumeError {
     VolumeError::Header {
         path: path.to_path_buf(),
         line,
-        message,
-    }
-}
-
-fn unsupported(path: &Path, message: String) -> VolumeError {
-    VolumeError::Unsupported {
-        path: path.to_path_buf(),
         message,
     }
 }

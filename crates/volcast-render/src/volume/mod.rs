@@ -15,6 +15,7 @@
 
 pub mod confine;
 pub mod dicom;
+mod errors;
 pub mod geometry;
 pub mod limits;
 pub mod mapped;

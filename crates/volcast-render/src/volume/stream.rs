@@ -3,19 +3,13 @@
 //! stream (compressed, or in the other byte order) into a buffer checked against the
 //! memory limit first, hashing the bytes as stored either way.
 
+use crate::volume::errors::data_err;
 use std::io::{self, Read};
 use std::path::Path;
 
 use super::mapped::{self, open_for_mapping};
 use super::{Limits, ScalarType, VolumeData, VolumeError};
 use nrrd::{ElementSink, ReadError};
-
-fn data_err(path: &Path, message: String) -> VolumeError {
-    VolumeError::Data {
-        path: path.to_path_buf(),
-        message,
-    }
-}
 
 fn io_err(path: &Path) -> impl Fn(io::Error) -> VolumeError + '_ {
     move |source| VolumeError::Io {

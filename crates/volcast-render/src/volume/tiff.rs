@@ -21,6 +21,7 @@
 //! Voxel `(i, j, k)` (column, row, page) sits at `(i sx, j sy, k sz)`: origin 0, axes
 //! along x, y, z, in the file's unit (µm for most microscopes; not converted to mm).
 
+use crate::volume::errors::{data_err, header_err, unsupported};
 use std::cmp::Ordering;
 use std::fs::File;
 use std::io::BufReader;
@@ -70,28 +71,6 @@ struct Layout {
     page: Page,
     spacing: [f64; 3],
     fields: Vec<(String, String)>,
-}
-
-fn data_err(path: &Path, message: String) -> VolumeError {
-    VolumeError::Data {
-        path: path.to_path_buf(),
-        message,
-    }
-}
-
-fn unsupported(path: &Path, message: String) -> VolumeError {
-    VolumeError::Unsupported {
-        path: path.to_path_buf(),
-        message,
-    }
-}
-
-fn header_err(path: &Path, message: String) -> VolumeError {
-    VolumeError::Header {
-        path: path.to_path_buf(),
-        line: 0,
-        message,
-    }
 }
 
 /// The crate's error on `page` of `path`, sorted as volcast sorts errors.

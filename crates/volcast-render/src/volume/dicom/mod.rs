@@ -27,6 +27,7 @@
 
 mod scan;
 
+use crate::volume::errors::header_err;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -108,14 +109,6 @@ struct Series {
 
 fn invalid(dir: &Path, message: String) -> VolumeError {
     VolumeError::Invalid(format!("{}: {message}", dir.display()))
-}
-
-fn header_err(path: &Path, message: String) -> VolumeError {
-    VolumeError::Header {
-        path: path.to_path_buf(),
-        line: 0,
-        message,
-    }
 }
 
 /// Opens a DICOM file through the crate (after [`scan::scan`] checked its lengths),

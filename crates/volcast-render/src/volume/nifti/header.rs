@@ -5,6 +5,7 @@
 //! else the qform when `qform_code > 0`, else the voxel sizes: "method 1" of
 //! `nifti1.h`, which NIfTI-2 keeps).
 
+use crate::volume::errors::{header_err, unsupported};
 use std::io::Read;
 use std::path::Path;
 
@@ -49,21 +50,6 @@ pub struct NiftiHeader {
     pub descrip: String,
     /// `intent_name`.
     pub intent_name: String,
-}
-
-fn header_err(path: &Path, message: String) -> VolumeError {
-    VolumeError::Header {
-        path: path.to_path_buf(),
-        line: 0,
-        message,
-    }
-}
-
-fn unsupported(path: &Path, message: String) -> VolumeError {
-    VolumeError::Unsupported {
-        path: path.to_path_buf(),
-        message,
-    }
 }
 
 /// The scalar type of a `datatype` code, or the name of a type volcast cannot render.

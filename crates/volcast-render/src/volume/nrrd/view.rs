@@ -1,27 +1,13 @@
 //! The 3D view of an N-D header: which axes become x, y, z, and the index-to-world
 //! geometry (space directions + origin, or spacings).
 
+use crate::volume::errors::{header_err, unsupported};
 use std::path::Path;
 
 use glam::DVec3;
 
 use crate::volume::{Geometry, VolumeError, VolumeHeader};
 use ::nrrd::NrrdHeader;
-
-fn unsupported(path: &Path, message: String) -> VolumeError {
-    VolumeError::Unsupported {
-        path: path.to_path_buf(),
-        message,
-    }
-}
-
-fn header_err(path: &Path, message: String) -> VolumeError {
-    VolumeError::Header {
-        path: path.to_path_buf(),
-        line: 0,
-        message,
-    }
-}
 
 /// True when axis `i` is not a spatial axis (a `none` direction or a non-domain kind).
 fn non_spatial(h: &NrrdHeader, i: usize) -> bool {
