@@ -142,9 +142,11 @@ fn run_plan(
         });
     }
     let mut notes = Vec::new();
-    let mut known = Known::find(plan, opts, limits, &mut notes)?;
+    // what the folder's last run recorded, read once for both uses
+    let previous = manifest::read_manifest(&plan.out)?;
+    let mut known = Known::find(plan, previous.as_ref(), opts, limits, &mut notes)?;
     if !opts.force {
-        refuse_another_scene(plan, header, &known.digest, &mut notes)?;
+        refuse_another_scene(plan, previous.as_ref(), header, &known.digest, &mut notes)?;
     }
     let jobs = jobs(plan, &known.done);
     if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
@@ -178,11 +180,12 @@ fn run_plan(
 /// renders again, replacing its images, and `notes` says so.
 fn refuse_another_scene(
     plan: &Plan,
+    previous: Option<&serde_json::Value>,
     header: &VolumeHeader,
     digest: &str,
     notes: &mut Vec<String>,
 ) -> Result<(), Error> {
-    let Some(previous) = manifest::read_manifest(&plan.out)? else {
+    let Some(previous) = previous else {
         return Ok(());
     };
     let hash = previous.get("scene_hash").and_then(|h| h.as_str());
@@ -246,16 +249,16 @@ impl Known {
     /// The voxels are known from the manifest when the volume's files did not change,
     /// else hashed while they are read. Images count as done only for the same
     /// voxels (`--resume`); with `--finish-only` every image counts as done, and the
-    /// manifest says which exist.
+    /// manifest says which exist. `previous` is the folder's `manifest.json`.
     fn find(
         plan: &Plan,
+        previous: Option<&serde_json::Value>,
         opts: &RunOptions,
         limits: &Limits,
         notes: &mut Vec<String>,
     ) -> Result<Known, Error> {
         let layout = &plan.scene.digest;
-        let previous = manifest::read_manifest(&plan.out)?;
-        if let Some(f) = previous.as_ref().and_then(manifest::manifest_format) {
+        if let Some(f) = previous.and_then(manifest::manifest_format) {
             if f != manifest::MANIFEST_FORMAT && opts.resume {
                 notes.push(format!(
                     "{} was written by an older volcast ({f}) whose records do not cover the voxel data: its images are rendered again",
@@ -292,7 +295,7 @@ impl Known {
             })
         };
         let source = &plan.volume.source;
-        let Some(recorded) = resume::trusted_identity(plan, previous.as_ref())? else {
+        let Some(recorded) = resume::trusted_identity(plan, previous)? else {
             let (volume, identity) = source.load_identified(limits)?;
             return known(volume, identity, notes);
         };
