@@ -3,6 +3,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 use std::process::ExitCode;
+use volcast::number::shown;
 
 use volcast::volume::{human_bytes, Limits, Stats, VolumeSource};
 
@@ -72,38 +73,44 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
             human_bytes(h.data_bytes())
         )?,
     }
-    writeln!(s, "spacing    {} {} {}", num(sp[0]), num(sp[1]), num(sp[2]))?;
+    writeln!(
+        s,
+        "spacing    {} {} {}",
+        shown(sp[0]),
+        shown(sp[1]),
+        shown(sp[2])
+    )?;
     let o = h.geometry.origin;
-    writeln!(s, "origin     {} {} {}", num(o.x), num(o.y), num(o.z))?;
+    writeln!(s, "origin     {} {} {}", shown(o.x), shown(o.y), shown(o.z))?;
     let ax = h.geometry.axes;
     writeln!(
         s,
         "axes       ({}, {}, {}) ({}, {}, {}) ({}, {}, {})",
-        num(ax[0].x),
-        num(ax[0].y),
-        num(ax[0].z),
-        num(ax[1].x),
-        num(ax[1].y),
-        num(ax[1].z),
-        num(ax[2].x),
-        num(ax[2].y),
-        num(ax[2].z)
+        shown(ax[0].x),
+        shown(ax[0].y),
+        shown(ax[0].z),
+        shown(ax[1].x),
+        shown(ax[1].y),
+        shown(ax[1].z),
+        shown(ax[2].x),
+        shown(ax[2].y),
+        shown(ax[2].z)
     )?;
     writeln!(
         s,
         "range      {} .. {} (mean {})",
-        num(stats.min),
-        num(stats.max),
+        shown(stats.min),
+        shown(stats.max),
         fixed6(stats.mean)
     )?;
     if !h.rescale.is_identity() {
         writeln!(
             s,
             "values     {} .. {} (= {} * stored + {}: the units of windows and of units = \"data\")",
-            num(value_range[0]),
-            num(value_range[1]),
-            num(h.rescale.slope),
-            num(h.rescale.intercept)
+            shown(value_range[0]),
+            shown(value_range[1]),
+            shown(h.rescale.slope),
+            shown(h.rescale.intercept)
         )?;
     }
     if stats.non_finite > 0 {
@@ -126,20 +133,6 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
     }
     super::print(&s)?;
     Ok(ExitCode::SUCCESS)
-}
-
-/// `x` as Rust prints it (the shortest form that reads back), in exponent form
-/// where that would be a long run of zeros; a value a file stored in single
-/// precision prints as that number (3.2, not its double 3.200000047683716).
-fn num(x: f64) -> String {
-    let plain = x == 0.0 || !x.is_finite() || (1e-6..1e15).contains(&x.abs());
-    let single = x.is_finite() && f64::from(x as f32) == x;
-    match (single, plain) {
-        (true, true) => format!("{}", x as f32),
-        (true, false) => format!("{:e}", x as f32),
-        (false, true) => format!("{x}"),
-        (false, false) => format!("{x:e}"),
-    }
 }
 
 /// `x` with six decimals, in exponent form (seven digits) where that would be a

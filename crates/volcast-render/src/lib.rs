@@ -32,6 +32,7 @@ pub mod error;
 pub mod histogram;
 pub mod label;
 pub mod mode;
+pub mod number;
 pub mod output;
 mod parallel;
 pub mod plan;

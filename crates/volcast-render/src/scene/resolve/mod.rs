@@ -13,6 +13,7 @@ mod passes;
 mod view;
 mod volume;
 
+use crate::number::shown;
 use std::ops::Range;
 use std::path::Path;
 
@@ -359,15 +360,5 @@ impl Resolver<'_> {
                 self.err(span.clone(), format!("`{k}` is not used {what}"));
             }
         }
-    }
-}
-
-/// A number of the scene as a message quotes it: as written for everyday
-/// magnitudes, in exponent form where that would be a long run of digits.
-pub(crate) fn shown(x: f64) -> String {
-    if x == 0.0 || !x.is_finite() || (1e-6..1e15).contains(&x.abs()) {
-        format!("{x}")
-    } else {
-        format!("{x:e}")
     }
 }
