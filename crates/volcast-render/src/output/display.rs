@@ -31,16 +31,15 @@ pub struct Window {
 }
 
 impl Window {
-    /// The range of the finite values of `films` (channel 0). A constant image `v`
+    /// The window spanning films' [`Window::finite_range`]s. A constant image `v`
     /// gets the window from 0 to `v` (so zero shows black and anything else white);
     /// no finite value gives `[0, 1]`.
-    pub fn of_films<'a>(films: impl IntoIterator<Item = &'a Film>) -> Window {
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for f in films {
-            let (a, b) = Window::finite_range(f);
-            lo = lo.min(a);
-            hi = hi.max(b);
-        }
+    pub fn of_ranges(ranges: impl IntoIterator<Item = (f64, f64)>) -> Window {
+        let (lo, hi) = ranges
+            .into_iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (a, b)| {
+                (lo.min(a), hi.max(b))
+            });
         Window::from_range(lo, hi)
     }
 
@@ -58,7 +57,7 @@ impl Window {
         (lo, hi)
     }
 
-    /// A window from a value range, made valid as in [`Window::of_films`].
+    /// A window from a value range, made valid as in [`Window::of_ranges`].
     pub fn from_range(lo: f64, hi: f64) -> Window {
         if !(lo.is_finite() && hi.is_finite()) {
             Window { lo: 0.0, hi: 1.0 }
@@ -145,7 +144,7 @@ mod tests {
             channels: 1,
             data: vec![1.0, 3.0, f32::NAN],
         };
-        let w = Window::of_films([&f]);
+        let w = Window::of_ranges([Window::finite_range(&f)]);
         assert_eq!((w.lo, w.hi), (1.0, 3.0));
         let d = to_display(&f, DisplayKind::Intensity(w, None), [0.25; 3]).unwrap();
         assert_eq!(d.data, vec![0.0, 1.0, 0.25]);

@@ -248,9 +248,7 @@ fn grey_windows(plan: &Plan, resources: &Resources) -> Vec<Option<Window>> {
                         )
                     }));
                 }
-                let lo = ranges.iter().map(|r| r.0).fold(f64::INFINITY, f64::min);
-                let hi = ranges.iter().map(|r| r.1).fold(f64::NEG_INFINITY, f64::max);
-                Some(Window::from_range(lo, hi))
+                Some(Window::of_ranges(ranges))
             }
         })
         .collect()
