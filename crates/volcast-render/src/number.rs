@@ -26,7 +26,9 @@ mod tests {
         assert_eq!(shown(f64::from(3.2f32)), "3.2");
         assert_eq!(shown(0.1), "0.1");
         assert_eq!(shown(1e308), "1e308");
-        assert_eq!(shown(-6.714715653593746e-19), "-6.714715653593746e-19");
+        assert_eq!(shown(-1.234567890123e-19), "-1.234567890123e-19");
+        // a float32 axis component's rounding noise, as a NIfTI qform gives it
+        assert_eq!(shown(f64::from(-6.7147157e-19f32)), "-6.7147157e-19");
         assert_eq!(shown(f64::MAX), "1.7976931348623157e308");
         assert_eq!(shown(3926.0), "3926");
         assert_eq!(shown(f64::NAN), "NaN");
