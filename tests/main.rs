@@ -37,3 +37,4 @@ mod stereo;
 mod units;
 mod video;
 mod viewer;
+mod volumes;

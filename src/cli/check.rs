@@ -11,10 +11,10 @@ pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
     let (scene, opts, limits) = super::render::prepare(&a.scene)?;
     let context = || format!("checking {}", scene.path.display());
     let _scope = volcast::pipeline::confine_run(&scene, &opts).with_context(context)?;
-    let header = scene.volume.source.header().with_context(context)?;
-    let plan = Plan::build(&scene, &header, &opts)?;
+    let headers = volcast::pipeline::headers(&scene).with_context(context)?;
+    let plan = Plan::build(&scene, &headers, &opts)?;
     plan.check_memory(&limits)?;
-    let mut text = plan.describe(&scene, &header);
+    let mut text = plan.describe(&scene);
     text.push('\n');
     if opts.resume {
         let total = plan.frame_list.len() * scene.passes.len();

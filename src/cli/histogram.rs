@@ -19,13 +19,13 @@ pub fn run(a: HistogramArgs) -> anyhow::Result<ExitCode> {
         None
     };
     let source = match &scene {
-        Some(s) => s.volume.source.clone(),
+        Some(s) => s.volume().source.clone(),
         None => VolumeSource::from_path(&a.volume)?,
     };
     let volume = source.load(&Limits::default())?;
     let name = file_name(&volume.header.source);
     let norm = match &scene {
-        Some(s) => volcast::pipeline::value_window(&s.volume, &s.path, &volume)?,
+        Some(s) => volcast::pipeline::value_window(s.volume(), &s.path, &volume)?,
         None => volcast::pipeline::data_window(&volume)?,
     };
     let opts = Options {

@@ -10,12 +10,50 @@ use volcast::volume::{human_bytes, Limits, Stats, VolumeSource};
 use super::args::InfoArgs;
 
 pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
-    let source = source_of(&a.volume)?;
+    let sources = sources_of(&a.volume)?;
     let mut limits = Limits::default();
     if let Some(m) = a.max_memory {
         limits.max_bytes = m;
     }
-    let volume = source.load(&limits)?;
+    if let [(_, source)] = sources.as_slice() {
+        let (text, _) = describe(source, &limits, a.json)?;
+        super::print(&text)?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    // a scene of several volumes: each one, under its name
+    if a.json {
+        let mut all = Vec::new();
+        for (name, source) in &sources {
+            let (_, mut json) = describe(source, &limits, true)?;
+            if let serde_json::Value::Object(m) = &mut json {
+                m.insert("name".into(), name.clone().into());
+            }
+            all.push(json);
+        }
+        let mut text = serde_json::to_string_pretty(&serde_json::json!({ "volumes": all }))?;
+        text.push('\n');
+        super::print(&text)?;
+    } else {
+        let mut text = String::new();
+        for (k, (name, source)) in sources.iter().enumerate() {
+            if k > 0 {
+                text.push('\n');
+            }
+            writeln!(text, "volume     {name}")?;
+            text += &describe(source, &limits, false)?.0;
+        }
+        super::print(&text)?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// What `info` prints of one volume: the text (or the JSON text) and the JSON.
+fn describe(
+    source: &VolumeSource,
+    limits: &Limits,
+    json: bool,
+) -> anyhow::Result<(String, serde_json::Value)> {
+    let volume = source.load(limits)?;
     let h = &volume.header;
     let stats = Stats::of(&volume.data);
     let sp = h.geometry.spacings();
@@ -23,7 +61,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
     // the physical values the stored range stands for (NIfTI scl_slope/scl_inter)
     let mut value_range = [stats.min, stats.max].map(|x| h.rescale.apply(x));
     value_range.sort_by(f64::total_cmp);
-    if a.json {
+    if json {
         let json = serde_json::json!({
             "source": h.source,
             "sizes": h.sizes,
@@ -47,8 +85,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
         });
         let mut text = serde_json::to_string_pretty(&json)?;
         text.push('\n');
-        super::print(&text)?;
-        return Ok(ExitCode::SUCCESS);
+        return Ok((text, json));
     }
     let mut s = String::new();
     let [nx, ny, nz] = h.sizes;
@@ -131,8 +168,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<ExitCode> {
     for (k, v) in &h.fields {
         writeln!(s, "{k:<10} {v}")?;
     }
-    super::print(&s)?;
-    Ok(ExitCode::SUCCESS)
+    Ok((s, serde_json::Value::Null))
 }
 
 /// `x` with six decimals, in exponent form (seven digits) where that would be a
@@ -159,13 +195,18 @@ pub(super) fn is_scene(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
 }
 
-/// The volume a path names: a volume file (NRRD, NIfTI, MetaImage), or the `[volume]`
-/// of a scene file.
-fn source_of(path: &Path) -> anyhow::Result<VolumeSource> {
+/// The volumes a path names, with their names: a volume file (NRRD, NIfTI,
+/// MetaImage, ...), or the `[volume]` (or each `[[volume]]`) of a scene file.
+fn sources_of(path: &Path) -> anyhow::Result<Vec<(String, VolumeSource)>> {
     if is_scene(path) {
-        Ok(volcast::scene::load(path)?.volume.source)
+        let scene = volcast::scene::load(path)?;
+        Ok(scene
+            .volumes
+            .into_iter()
+            .map(|v| (v.name, v.spec.source))
+            .collect())
     } else {
-        Ok(VolumeSource::from_path(path)?)
+        Ok(vec![(String::new(), VolumeSource::from_path(path)?)])
     }
 }
 

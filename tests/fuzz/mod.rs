@@ -81,15 +81,15 @@ fn scene_case(path: &Path) {
     let Ok(scene) = volcast::scene::load(path) else {
         return;
     };
-    let Ok(header) = scene.volume.source.header() else {
+    let Ok(headers) = volcast::pipeline::headers(&scene) else {
         return;
     };
     let opts = RunOptions::default();
-    if let Ok(plan) = Plan::build(&scene, &header, &opts) {
+    if let Ok(plan) = Plan::build(&scene, &headers, &opts) {
         let _ = plan.check_memory(&Limits {
             max_bytes: 256 << 20,
         });
-        let _ = plan.describe(&scene, &header);
+        let _ = plan.describe(&scene);
     }
 }
 

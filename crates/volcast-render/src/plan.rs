@@ -112,20 +112,17 @@ pub struct Plan {
     pub output: Outputs,
     /// What the manifest records of the scene.
     pub scene: SceneRecord,
-    /// Where the voxels come from, their value window and units, and the crop.
-    pub volume: VolumeSpec,
-    /// The volume's box in index space and the map to it (rays are clipped to it).
-    pub frame: IndexFrame,
-    /// The bounding sphere of the box (what cameras frame).
+    /// The scene's volumes, in its order: where each one's voxels come from, where
+    /// it sits, and which passes read it.
+    pub volumes: Vec<PlannedVolume>,
+    /// The bounding sphere of the volumes' boxes (what cameras frame): of the one
+    /// box, or around the union of several.
     pub sphere: (glam::DVec3, f64),
     /// Size of the preview used for automatic grey windows.
     pub preview: (usize, usize),
-    /// World length of one voxel of the smallest spacing.
-    pub voxel_length: f64,
-    /// Bytes of the voxels volcast allocates (0 when they are mapped).
+    /// Bytes of the voxels volcast allocates (0 when they are mapped), of every
+    /// volume a pass reads.
     pub volume_bytes: u64,
-    /// Where the voxels come from: mapped from a file, or read into memory.
-    pub storage: crate::volume::Storage,
     /// Bytes of all precomputed volumes and tables.
     pub precomputed_bytes: u64,
     /// Bytes allocated only while the precomputations are built (the prefilter's
@@ -152,6 +149,56 @@ pub struct Plan {
     pub fit_threshold: Option<f64>,
 }
 
+/// One volume of a run, planned from its header.
+#[derive(Clone, Debug)]
+pub struct PlannedVolume {
+    /// Its name (`[[volume]] name`).
+    pub name: String,
+    /// Where its voxels come from, their value window and units, and the crop.
+    pub spec: VolumeSpec,
+    /// Its header, its geometry moved by the scene's `transform` (where it sits in
+    /// the world).
+    pub header: VolumeHeader,
+    /// Its box in index space and the map to it (rays are clipped to it).
+    pub frame: IndexFrame,
+    /// Where its voxels come from: mapped from a file, or read into memory.
+    pub storage: crate::volume::Storage,
+    /// The passes that read it (indices into the plan's passes); none: it is not
+    /// loaded.
+    pub passes: Vec<usize>,
+}
+
+impl PlannedVolume {
+    /// Whether a pass reads it (else it is not loaded).
+    pub fn is_read(&self) -> bool {
+        !self.passes.is_empty()
+    }
+
+    /// World length of one voxel of its smallest spacing.
+    pub fn voxel_length(&self) -> f64 {
+        self.header
+            .geometry
+            .spacings()
+            .into_iter()
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// The headers of the scene's volumes as the run places them: each one's geometry
+/// moved by its `transform`.
+pub fn placed_headers(scene: &Scene, headers: Vec<VolumeHeader>) -> Vec<VolumeHeader> {
+    headers
+        .into_iter()
+        .zip(&scene.volumes)
+        .map(|(mut h, v)| {
+            if let Some(t) = v.transform {
+                h.geometry = t.place(&h.geometry);
+            }
+            h
+        })
+        .collect()
+}
+
 impl Plan {
     /// The variant of pass `p` that frame `k` renders (an index into
     /// [`Plan::variants`]).
@@ -159,26 +206,44 @@ impl Plan {
         self.variant_of.as_ref().map_or(p, |v| v[p][k])
     }
 
-    /// Plans `scene` for a volume described by `header`.
-    pub fn build(scene: &Scene, header: &VolumeHeader, opts: &RunOptions) -> Result<Plan, Error> {
+    /// Plans `scene` for volumes described by `headers` (the files' headers, in the
+    /// order of the scene's volumes; each is placed by its `transform` here).
+    pub fn build(
+        scene: &Scene,
+        headers: &[VolumeHeader],
+        opts: &RunOptions,
+    ) -> Result<Plan, Error> {
         let (width, height) = opts.size.unwrap_or((scene.image.width, scene.image.height));
-        let frames =
-            check(scene, header, opts, (width, height)).map_err(|message| Error::Plan {
-                scene: scene.path.clone(),
-                message,
-            })?;
-        let storage = scene.volume.source.storage()?;
-        let geometry = &header.geometry;
-        let voxel_length = geometry
-            .spacings()
-            .into_iter()
-            .fold(f64::INFINITY, f64::min);
-        let index_from_world = geometry
-            .index_from_world_matrix()
-            .expect("checked by is_valid in check");
-        let frame = IndexFrame::new(header.sizes, scene.volume.crop, geometry, index_from_world);
-        let sphere = frame.bounding_sphere(geometry);
-        let passes = render_passes(scene, header, voxel_length, sphere, opts);
+        let headers = placed_headers(scene, headers.to_vec());
+        let plan_err = |message| Error::Plan {
+            scene: scene.path.clone(),
+            message,
+        };
+        let frames = check(scene, &headers, opts, (width, height)).map_err(plan_err)?;
+        let mut volumes = Vec::with_capacity(headers.len());
+        for (v, header) in scene.volumes.iter().zip(headers) {
+            let storage = v.spec.source.storage()?;
+            let index_from_world = header
+                .geometry
+                .index_from_world_matrix()
+                .expect("checked by is_valid in check");
+            let frame = IndexFrame::new(header.sizes, v.spec.crop, &header.geometry, index_from_world);
+            volumes.push(PlannedVolume {
+                name: v.name.clone(),
+                spec: v.spec.clone(),
+                header,
+                frame,
+                storage,
+                passes: Vec::new(),
+            });
+        }
+        for (p, pass) in scene.passes.iter().enumerate() {
+            for &k in &pass.volumes {
+                volumes[k].passes.push(p);
+            }
+        }
+        let sphere = bounding_sphere(&volumes);
+        let passes = render_passes(scene, &volumes, sphere, opts);
         let (variants, variant_of) = pass_variants(scene, &passes);
         let auto_window = scene
             .passes
@@ -204,21 +269,22 @@ impl Plan {
             height,
             out: opts.out.clone().unwrap_or_else(|| scene.image.out.clone()),
             viewer: scene.viewer || opts.viewer,
-            length_unit: length_unit(header),
+            length_unit: length_unit(&volumes[0].header),
             passes,
             variants,
             variant_of,
             auto_window,
             windows: scene.passes.iter().map(|p| p.window).collect(),
             output: Outputs::of_scene(scene),
-            scene: SceneRecord::new(scene, header, width, height),
-            volume: scene.volume.clone(),
-            frame,
+            scene: SceneRecord::new(scene, &headers_of(&volumes), width, height),
+            volume_bytes: volumes
+                .iter()
+                .filter(|v| v.is_read())
+                .map(|v| v.storage.allocated_bytes())
+                .sum(),
+            volumes,
             sphere,
             preview: (width.div_ceil(4).max(8), height.div_ceil(4).max(8)),
-            voxel_length,
-            volume_bytes: storage.allocated_bytes(),
-            storage,
             precomputed_bytes: 0,
             transient_bytes: 0,
             film_bytes: 0,
@@ -237,8 +303,14 @@ impl Plan {
             scene: scene.path.clone(),
             message,
         })?;
-        plan.estimate(scene, header);
+        plan.estimate(scene);
         Ok(plan)
+    }
+
+    /// The frame of the volume pass `p` reads (a blend's first; its view renders
+    /// over every volume's own).
+    pub fn frame_of(&self, p: &RenderPass) -> &IndexFrame {
+        &self.volumes[p.volume()].frame
     }
 
     /// Refuses views the renderer cannot compute: it marches in f32, so every eye
@@ -275,51 +347,80 @@ impl Plan {
     }
 
     /// Fills in the estimates: memory, item by item, and samples.
-    fn estimate(&mut self, scene: &Scene, header: &VolumeHeader) {
-        let voxels = header.voxel_count() as u64;
-        let pre = self.precomputations(header);
-        self.precomputed_bytes = pre.bytes;
-        self.transient_bytes = pre.transient;
+    fn estimate(&mut self, scene: &Scene) {
+        let several = self.volumes.len() > 1;
+        let mut items: Vec<(String, u64)> = Vec::new();
+        let (mut bytes, mut transient) = (0u64, 0u64);
+        for (k, v) in self.volumes.iter().enumerate() {
+            if !v.is_read() {
+                continue;
+            }
+            let of = |what: String| {
+                if several {
+                    format!("volume `{}`: {what}", v.name)
+                } else {
+                    what
+                }
+            };
+            let header = &v.header;
+            let voxels = header.voxel_count() as u64;
+            let pre = self.precomputations(k);
+            bytes = bytes.saturating_add(pre.bytes);
+            transient = transient.saturating_add(pre.transient);
+            if let crate::volume::Storage::Read { bytes, reason } = &v.storage {
+                let what = if several {
+                    format!("read into memory ({reason})")
+                } else {
+                    format!("volume, read into memory ({reason})")
+                };
+                items.push((of(what), *bytes));
+            }
+            for g in &pre.gradient_methods {
+                items.push((
+                    of(format!("{} gradient volume (3 floats per voxel)", g.name())),
+                    voxels.saturating_mul(12),
+                ));
+            }
+            if pre.cubic {
+                items.push((
+                    of("cubic B-spline coefficients (a float per voxel)".into()),
+                    voxels.saturating_mul(4),
+                ));
+                items.push((
+                    of("cubic prefilter while it runs (two double-precision copies)".into()),
+                    pre.transient,
+                ));
+            }
+            if pre.small > 0 {
+                items.push((
+                    of("macrocell grids and their footprints, transfer-function and lookup tables".into()),
+                    pre.small,
+                ));
+            }
+        }
+        self.precomputed_bytes = bytes;
+        self.transient_bytes = transient;
         self.estimate_images(scene);
-        let diagonal = {
-            let c = header.geometry.corners(header.sizes);
-            (c[7] - c[0]).length()
-        };
+        // the longest ray: through the box of every volume a pass reads
+        let diagonal = self
+            .volumes
+            .iter()
+            .map(|v| {
+                let c = v.header.geometry.corners(v.header.sizes);
+                (c[7] - c[0]).length()
+            })
+            .fold(0.0, f64::max);
         self.samples_estimate = self
             .passes
             .iter()
-            .map(|p| (diagonal / p.dt + 2.0) * (self.width * self.height) as f64)
+            .map(|p| {
+                let parts = p.reads().len() as f64;
+                (diagonal / p.dt + 2.0) * parts * (self.width * self.height) as f64
+            })
             .sum::<f64>()
             * self.views.needed(self.frame_list.iter().copied()) as f64;
         let memory = &mut self.memory;
-        match &self.storage {
-            crate::volume::Storage::Read { bytes, reason } => {
-                memory.push((format!("volume, read into memory ({reason})"), *bytes));
-            }
-            crate::volume::Storage::Mapped { .. } => {}
-        }
-        for g in &pre.gradient_methods {
-            memory.push((
-                format!("{} gradient volume (3 floats per voxel)", g.name()),
-                voxels.saturating_mul(12),
-            ));
-        }
-        if pre.cubic {
-            memory.push((
-                "cubic B-spline coefficients (a float per voxel)".into(),
-                voxels.saturating_mul(4),
-            ));
-            memory.push((
-                "cubic prefilter while it runs (two double-precision copies)".into(),
-                pre.transient,
-            ));
-        }
-        if pre.small > 0 {
-            memory.push((
-                "macrocell grids and their footprints, transfer-function and lookup tables".into(),
-                pre.small,
-            ));
-        }
+        memory.append(&mut items);
         memory.push((
             format!(
                 "rendered images in flight ({} x {}, {} threads)",
@@ -336,10 +437,18 @@ impl Plan {
         memory.push(("images being encoded and written".into(), self.output_bytes));
     }
 
-    /// What the passes precompute, shared between them and each counted once.
-    fn precomputations(&self, header: &VolumeHeader) -> Precomputations {
+    /// What the passes precompute over volume `k`, shared between them and each
+    /// counted once.
+    fn precomputations(&self, k: usize) -> Precomputations {
+        let header = &self.volumes[k].header;
         let voxels = header.voxel_count() as u64;
-        let passes = &self.passes;
+        let passes: Vec<&RenderPass> = self
+            .passes
+            .iter()
+            .flat_map(|p| p.reads())
+            .filter(|(v, _)| *v == k)
+            .map(|(_, p)| p)
+            .collect();
         let mut gradient_methods: Vec<_> = passes
             .iter()
             .filter_map(|p| p.needs().gradient_volume)
@@ -519,9 +628,14 @@ impl Plan {
     }
 
     /// A human-readable description (what `volcast check` prints).
-    pub fn describe(&self, scene: &Scene, header: &VolumeHeader) -> String {
+    pub fn describe(&self, scene: &Scene) -> String {
         let mut s = String::new();
-        describe_volume(&mut s, scene, header);
+        let _ = writeln!(s, "scene    {}", scene.path.display());
+        if let [one] = self.volumes.as_slice() {
+            describe_volume(&mut s, one);
+        } else {
+            self.describe_volumes(&mut s, scene);
+        }
         self.describe_frames(&mut s, scene);
         let _ = writeln!(s, "stereo   {}", crate::output::describe_stereo(scene));
         let _ = writeln!(s, "views    {}", self.views.describe(&self.frame_list));
@@ -545,7 +659,7 @@ impl Plan {
                 rp.dt,
                 p.interpolation.name()
             );
-            for n in self.pass_notes(scene, header, p, rp, auto) {
+            for n in self.pass_notes(scene, p, rp, auto) {
                 let _ = writeln!(s, "               {n}");
             }
         }
@@ -603,14 +717,41 @@ impl Plan {
     fn pass_notes(
         &self,
         scene: &Scene,
-        header: &VolumeHeader,
         p: &crate::scene::RenderPass,
         rp: &RenderPass,
         auto: bool,
     ) -> Vec<String> {
-        let units = scene.volume.units;
+        let units = self.volumes[rp.volume()].spec.units;
         let mut needs = self.mode_notes(units, p);
-        needs.extend(rp.describe(header.sizes));
+        if self.volumes.len() > 1 && rp.parts().is_empty() {
+            needs.push(format!("reads volume `{}`", self.volumes[rp.volume()].name));
+        }
+        if rp.parts().is_empty() {
+            needs.extend(rp.describe(self.volumes[rp.volume()].header.sizes));
+        } else {
+            needs.extend(rp.describe(self.volumes[rp.volume()].header.sizes));
+            let names: Vec<String> = p
+                .volumes
+                .iter()
+                .map(|&k| format!("`{}`", self.volumes[k].name))
+                .collect();
+            needs.push(format!(
+                "blends volumes {} at each sample: opacity 1 - prod(1 - a_i), colour sum(a_i c_i) / sum(a_i); each shaded with its own gradient",
+                names.join(", ")
+            ));
+            let transfers = p.mode.manifest();
+            let tf_names: Vec<String> = transfers
+                .get("transfers")
+                .and_then(|t| t.as_array())
+                .map(|a| a.iter().filter_map(|x| x.as_str().map(String::from)).collect())
+                .unwrap_or_default();
+            for (i, (k, part)) in rp.parts().iter().enumerate() {
+                let v = &self.volumes[*k];
+                let tf = tf_names.get(i).map_or(String::new(), |n| format!(" through `{n}`"));
+                let what = part.describe(v.header.sizes).join("; ");
+                needs.push(format!("volume `{}`{tf}: {what}", v.name));
+            }
+        }
         for (k, c) in scene.clips.iter().enumerate() {
             if c.applies_to(&p.name) {
                 let mut line = describe_clip(k, c, &*p.mode);
@@ -678,12 +819,14 @@ impl Plan {
     /// The memory and samples lines of [`Plan::describe`].
     fn describe_memory(&self, s: &mut String) {
         let mut parts: Vec<String> = Vec::new();
-        if let crate::volume::Storage::Mapped { path, bytes, .. } = &self.storage {
-            parts.push(format!(
-                "volume mapped, not allocated: {} of {}",
-                human_bytes(*bytes),
-                path.display()
-            ));
+        for v in self.volumes.iter().filter(|v| v.is_read()) {
+            if let crate::volume::Storage::Mapped { path, bytes, .. } = &v.storage {
+                parts.push(format!(
+                    "volume mapped, not allocated: {} of {}",
+                    human_bytes(*bytes),
+                    path.display()
+                ));
+            }
         }
         parts.extend(
             self.memory
@@ -706,11 +849,12 @@ impl Plan {
     }
 }
 
-/// The scene, volume, value, window and crop lines of [`Plan::describe`].
-fn describe_volume(s: &mut String, scene: &Scene, header: &VolumeHeader) {
+/// The volume, value, window and crop lines of [`Plan::describe`] for a scene of
+/// one volume.
+fn describe_volume(s: &mut String, v: &PlannedVolume) {
+    let header = &v.header;
     let [nx, ny, nz] = header.sizes;
     let sp = header.geometry.spacings();
-    let _ = writeln!(s, "scene    {}", scene.path.display());
     let _ = writeln!(
         s,
         "volume   {} ({nx} x {ny} x {nz} {}, spacing {:.4} {:.4} {:.4}, {})",
@@ -721,35 +865,113 @@ fn describe_volume(s: &mut String, scene: &Scene, header: &VolumeHeader) {
         sp[2],
         human_bytes(header.data_bytes())
     );
+    describe_values(s, v, "");
+}
+
+/// The rescale, window and crop lines of a volume (`indent` before each).
+fn describe_values(s: &mut String, v: &PlannedVolume, indent: &str) {
+    let header = &v.header;
     if !header.rescale.is_identity() {
         let _ = writeln!(
             s,
-            "values   {} * stored + {} (the volume's rescale, folded into the window: windows are values)",
+            "{indent}values   {} * stored + {} (the volume's rescale, folded into the window: windows are values)",
             header.rescale.slope, header.rescale.intercept
         );
     }
-    match scene.volume.window {
+    match v.spec.window {
         Some([lo, hi]) => {
-            let units = match scene.volume.units {
+            let units = match v.spec.units {
                 Units::Data { .. } => " (units = \"data\": the scene's values are data values)",
                 Units::Normalised => "",
             };
-            let _ = writeln!(s, "window   [{lo}, {hi}] -> [0, 1]{units}");
+            let _ = writeln!(s, "{indent}window   [{lo}, {hi}] -> [0, 1]{units}");
         }
         None => {
             let _ = writeln!(
                 s,
-                "window   the data's min..max (read when the volume is loaded)"
+                "{indent}window   the data's min..max (read when the volume is loaded)"
             );
         }
     }
-    if let Some(c) = scene.volume.crop {
+    if let Some(c) = v.spec.crop {
         let _ = writeln!(
             s,
-            "crop     x {}..={}, y {}..={}, z {}..={} (rays are clipped to this box)",
+            "{indent}crop     x {}..={}, y {}..={}, z {}..={} (rays are clipped to this box)",
             c[0][0], c[0][1], c[1][0], c[1][1], c[2][0], c[2][1]
         );
     }
+}
+
+impl Plan {
+    /// The volumes lines of [`Plan::describe`] for a scene of several: each one's
+    /// file, box in world units, memory and the passes that read it.
+    fn describe_volumes(&self, s: &mut String, scene: &Scene) {
+        let _ = writeln!(s, "volumes  {}", self.volumes.len());
+        for (v, sv) in self.volumes.iter().zip(&scene.volumes) {
+            let header = &v.header;
+            let [nx, ny, nz] = header.sizes;
+            let corners = header.geometry.box_corners(v.frame.lo, v.frame.hi);
+            let lo = corners.iter().fold(glam::DVec3::INFINITY, |a, &c| a.min(c));
+            let hi = corners.iter().fold(glam::DVec3::NEG_INFINITY, |a, &c| a.max(c));
+            let memory = match &v.storage {
+                crate::volume::Storage::Read { bytes, .. } => format!("{} read into memory", human_bytes(*bytes)),
+                crate::volume::Storage::Mapped { bytes, .. } => format!("{} mapped", human_bytes(*bytes)),
+            };
+            let read: Vec<String> = v
+                .passes
+                .iter()
+                .map(|&p| format!("`{}`", scene.passes[p].name))
+                .collect();
+            let read = if read.is_empty() {
+                "read by no pass: not loaded".to_string()
+            } else {
+                format!("read by {}", read.join(", "))
+            };
+            let _ = writeln!(
+                s,
+                "  {:<12} {} ({nx} x {ny} x {nz} {}, {memory}), {read}",
+                v.name, header.source, header.scalar_type
+            );
+            let _ = writeln!(
+                s,
+                "               box x {:.4}..{:.4}, y {:.4}..{:.4}, z {:.4}..{:.4} (world){}",
+                lo.x,
+                hi.x,
+                lo.y,
+                hi.y,
+                lo.z,
+                hi.z,
+                if sv.transform.is_some() { ", moved by its transform" } else { "" }
+            );
+            describe_values(s, v, "               ");
+        }
+    }
+}
+
+/// The headers of the plan's volumes, in order.
+fn headers_of(volumes: &[PlannedVolume]) -> Vec<VolumeHeader> {
+    volumes.iter().map(|v| v.header.clone()).collect()
+}
+
+/// The sphere cameras frame: around the one volume's box (its circumsphere), or
+/// around the union of several boxes (centred on the box of all their corners,
+/// through the farthest corner).
+fn bounding_sphere(volumes: &[PlannedVolume]) -> (glam::DVec3, f64) {
+    if let [one] = volumes {
+        return one.frame.bounding_sphere(&one.header.geometry);
+    }
+    let corners: Vec<glam::DVec3> = volumes
+        .iter()
+        .flat_map(|v| v.header.geometry.box_corners(v.frame.lo, v.frame.hi))
+        .collect();
+    let lo = corners.iter().fold(glam::DVec3::INFINITY, |a, &c| a.min(c));
+    let hi = corners.iter().fold(glam::DVec3::NEG_INFINITY, |a, &c| a.max(c));
+    let centre = 0.5 * (lo + hi);
+    let radius = corners
+        .iter()
+        .map(|&c| (c - centre).length())
+        .fold(0.0, f64::max);
+    (centre, radius)
 }
 
 /// What `check` says of a scene's keyframes.
@@ -814,26 +1036,36 @@ struct Precomputations {
 /// turntable page over NRRD frames. The frames selected, or the message.
 fn check(
     scene: &Scene,
-    header: &VolumeHeader,
+    headers: &[VolumeHeader],
     opts: &RunOptions,
     (width, height): (usize, usize),
 ) -> Result<Range<usize>, String> {
-    if !header.geometry.is_valid() {
-        return Err(format!(
-            "the volume {} has degenerate axes (space directions or spacings are zero, non-finite or coplanar)",
-            header.source
-        ));
-    }
-    if let Some(crop) = scene.volume.crop {
-        for (a, (&[lo, hi], &n)) in crop.iter().zip(&header.sizes).enumerate() {
-            if hi >= n {
-                return Err(format!(
-                    "volume.crop: the {} range [{lo}, {hi}] is outside the volume's {n} voxels (0..={})",
-                    ["x", "y", "z"][a],
-                    n - 1
-                ));
+    assert_eq!(headers.len(), scene.volumes.len(), "a header per volume");
+    let several = headers.len() > 1;
+    for (v, header) in scene.volumes.iter().zip(headers) {
+        let which = if several {
+            format!("volume `{}`: ", v.name)
+        } else {
+            String::new()
+        };
+        if !header.geometry.is_valid() {
+            return Err(format!(
+                "{which}the volume {} has degenerate axes (space directions or spacings are zero, non-finite or coplanar{})",
+                header.source,
+                if v.transform.is_some() { ", with its transform" } else { "" }
+            ));
+        }
+        if let Some(crop) = v.spec.crop {
+            for (a, (&[lo, hi], &n)) in crop.iter().zip(&header.sizes).enumerate() {
+                if hi >= n {
+                    return Err(format!(
+                        "{which}volume.crop: the {} range [{lo}, {hi}] is outside the volume's {n} voxels (0..={})",
+                        ["x", "y", "z"][a],
+                        n - 1
+                    ));
+                }
+                debug_assert!(lo <= hi, "checked by the scene resolver");
             }
-            debug_assert!(lo <= hi, "checked by the scene resolver");
         }
     }
     let total = scene.orbit.frames;
@@ -945,11 +1177,11 @@ fn eyes(scene: &Scene) -> Vec<(Eye, f64)> {
     }
 }
 
-/// One render pass per scene pass, with the clip planes that apply to it.
+/// One render pass per scene pass, with the clip planes that apply to it: over
+/// its volume, or, for a pass over several, over each volume's part.
 fn render_passes(
     scene: &Scene,
-    header: &VolumeHeader,
-    voxel_length: f64,
+    volumes: &[PlannedVolume],
     sphere: (glam::DVec3, f64),
     opts: &RunOptions,
 ) -> Vec<RenderPass> {
@@ -964,12 +1196,12 @@ fn render_passes(
                 .filter(|c| c.applies_to(&p.name))
                 .map(|c| clip_plane(c, c.offset))
                 .collect();
-            let mode = p.mode.plan(&PassContext {
+            let ctx = PassContext {
                 exact: p.integration == Integration::Exact,
                 sphere_diameter: 2.0 * sphere.1,
                 light,
                 window: p.window,
-            });
+            };
             let sampling = Sampling {
                 name: p.name.clone(),
                 mode_name: p.mode.name(),
@@ -981,14 +1213,48 @@ fn render_passes(
                 step_voxels: p.step_voxels,
                 jitter: p.jitter,
             };
-            RenderPass::new(
-                sampling,
-                mode,
-                header.scalar_type,
-                voxel_length,
-                !opts.no_skip,
-            )
-            .with_clips(clips)
+            // steps are in voxels of the smallest spacing of the volumes it reads
+            let voxel_length = p
+                .volumes
+                .iter()
+                .map(|&k| volumes[k].voxel_length())
+                .fold(f64::INFINITY, f64::min);
+            let skip = !opts.no_skip;
+            let frames: Vec<IndexFrame> = p.volumes.iter().map(|&k| volumes[k].frame).collect();
+            let pass = match p.mode.plan_blend(&ctx, frames) {
+                Some(blend) => {
+                    let parts = p
+                        .volumes
+                        .iter()
+                        .enumerate()
+                        .map(|(i, &k)| {
+                            let mode = p.mode.part(i).expect("a blend has a part per volume");
+                            let part = RenderPass::new(
+                                sampling.clone(),
+                                mode.plan(&ctx),
+                                volumes[k].header.scalar_type,
+                                voxel_length,
+                                skip,
+                            )
+                            .on_volume(k);
+                            (k, part)
+                        })
+                        .collect();
+                    RenderPass::blend(sampling, blend, voxel_length, parts)
+                }
+                None => {
+                    let k = p.volumes[0];
+                    RenderPass::new(
+                        sampling,
+                        p.mode.plan(&ctx),
+                        volumes[k].header.scalar_type,
+                        voxel_length,
+                        skip,
+                    )
+                    .on_volume(k)
+                }
+            };
+            pass.with_clips(clips)
         })
         .collect()
 }

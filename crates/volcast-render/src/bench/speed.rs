@@ -167,7 +167,7 @@ pub fn speed(
             &scene_text(table, "mip", opts.size, opts.frames),
             Path::new("speed.toml"),
         )?;
-        let volume = first.volume.source.load(&Limits::default())?;
+        let volume = first.volume().source.load(&Limits::default())?;
         for mode in crate::mode::names() {
             let cases = case(opts, name, table, mode, &volume)?;
             let base = cases[0].ms_per_frame;

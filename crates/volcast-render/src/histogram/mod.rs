@@ -84,7 +84,7 @@ impl Options {
             .map_or(GradientMethod::Central, |s| s.gradient);
         Options {
             gradient,
-            crop: scene.volume.crop,
+            crop: scene.volume().crop,
             ..Options::default()
         }
     }

@@ -91,8 +91,13 @@ pub trait Keys {
     /// one is wrong (reported).
     fn shading(&mut self) -> Option<Shading>;
     /// The transfer function (`transfer`, `grey` when absent) by its name: the
-    /// scene's own or a preset; `None` when it is not defined (reported).
+    /// scene's own or a preset; `None` when it is not defined (reported). For a
+    /// pass over several volumes, its first volume's.
     fn transfer(&mut self) -> Option<(String, Transfer)>;
+    /// The transfer function of each volume the pass reads, in the order of its
+    /// `volumes` (one for a pass over one volume: [`Keys::transfer`]'s); `None`
+    /// when one is missing or not defined (reported).
+    fn transfers(&mut self) -> Option<Vec<(String, Transfer)>>;
     /// Reports an error at `key`.
     fn error(&mut self, key: &str, message: String);
     /// Reports a warning.
@@ -232,6 +237,24 @@ pub trait Mode: fmt::Debug + Send + Sync {
 
     /// The mode as the renderer runs it.
     fn plan(&self, ctx: &PassContext) -> Arc<dyn RayMode>;
+
+    /// For a pass over several volumes, the mode of its `k`-th volume's part (in
+    /// the order of the pass's volumes) as a pass of its own would have it: what
+    /// that volume needs precomputed. `None` for a pass over one volume.
+    fn part(&self, _k: usize) -> Option<Arc<dyn Mode>> {
+        None
+    }
+
+    /// For a pass over several volumes, the mode as the renderer runs it over
+    /// all of them, given each one's frame (in the order of the pass's volumes).
+    /// `None` for a pass over one volume.
+    fn plan_blend(
+        &self,
+        _ctx: &PassContext,
+        _frames: Vec<crate::render::IndexFrame>,
+    ) -> Option<Arc<dyn RayMode>> {
+        None
+    }
 }
 
 /// The `check` note of a level: `threshold 0.3` or `iso value 0.3`.
@@ -291,6 +314,9 @@ mod tests {
             )
             .unwrap();
             Some(("ramp".into(), Transfer::OneD(Arc::new(tf))))
+        }
+        fn transfers(&mut self) -> Option<Vec<(String, Transfer)>> {
+            Some(vec![self.transfer()?])
         }
         fn error(&mut self, key: &str, message: String) {
             panic!("defaults give no error, but `{key}`: {message}");

@@ -495,7 +495,12 @@ pub fn file_record(path: &Path, bytes: &[u8]) -> FileRecord {
 }
 
 /// The identity of a scene's images: see the module documentation.
-pub fn scene_digest(scene: &Scene, header: &VolumeHeader, width: usize, height: usize) -> String {
+pub fn scene_digest(
+    scene: &Scene,
+    headers: &[VolumeHeader],
+    width: usize,
+    height: usize,
+) -> String {
     let mut h = Sha256::new();
     h.update(b"volcast scene digest 2\0");
     put_str(&mut h, env!("CARGO_PKG_VERSION"));
@@ -515,20 +520,23 @@ pub fn scene_digest(scene: &Scene, header: &VolumeHeader, width: usize, height: 
             put_str(&mut h, &scene.text);
         }
     }
-    put_str(&mut h, &header.source);
-    for n in header.sizes {
-        h.update((n as u64).to_le_bytes());
-    }
-    put_str(&mut h, header.scalar_type.nrrd_name());
-    for v in std::iter::once(header.geometry.origin).chain(header.geometry.axes) {
-        for x in v.to_array() {
-            h.update(x.to_bits().to_le_bytes());
+    // each volume's header, as placed (a scene of one volume hashes as before)
+    for header in headers {
+        put_str(&mut h, &header.source);
+        for n in header.sizes {
+            h.update((n as u64).to_le_bytes());
         }
-    }
-    h.update((header.fields.len() as u64).to_le_bytes());
-    for (k, v) in &header.fields {
-        put_str(&mut h, k);
-        put_str(&mut h, v);
+        put_str(&mut h, header.scalar_type.nrrd_name());
+        for v in std::iter::once(header.geometry.origin).chain(header.geometry.axes) {
+            for x in v.to_array() {
+                h.update(x.to_bits().to_le_bytes());
+            }
+        }
+        h.update((header.fields.len() as u64).to_le_bytes());
+        for (k, v) in &header.fields {
+            put_str(&mut h, k);
+            put_str(&mut h, v);
+        }
     }
     h.update((width as u64).to_le_bytes());
     h.update((height as u64).to_le_bytes());
@@ -641,6 +649,7 @@ pub fn resolved_scene(scene: &Scene) -> Value {
                 "step_voxels": p.step_voxels,
                 "interpolation": p.interpolation.name(),
                 "window": p.window,
+                "volumes": p.volumes.iter().map(|&k| scene.volumes[k].name.clone()).collect::<Vec<_>>(),
             });
             let extra = Value::Object(p.mode.manifest());
             if let (Value::Object(o), Value::Object(e)) = (&mut o, extra) {
@@ -667,7 +676,20 @@ pub fn resolved_scene(scene: &Scene) -> Value {
         LightKindSpec::Point(p) => json!({ "kind": "point", "position": p.to_array() }),
     };
     json!({
-        "volume": { "window": scene.volume.window },
+        "volume": { "window": scene.volume().window },
+        "volumes": scene.volumes.iter().map(|v| json!({
+            "name": v.name,
+            "window": v.spec.window,
+            "transform": v.transform.map(|t| {
+                let (m, x) = (t.matrix, t.translation);
+                [
+                    [m.x_axis.x, m.y_axis.x, m.z_axis.x, x.x],
+                    [m.x_axis.y, m.y_axis.y, m.z_axis.y, x.y],
+                    [m.x_axis.z, m.y_axis.z, m.z_axis.z, x.z],
+                    [0.0, 0.0, 0.0, 1.0],
+                ]
+            }),
+        })).collect::<Vec<_>>(),
         "camera": {
             "projection": match c.projection {
                 Projection::Perspective => "perspective",
@@ -791,14 +813,19 @@ pub struct SceneRecord {
 }
 
 impl SceneRecord {
-    /// The record of `scene` rendered from a volume described by `header` at
-    /// `width` x `height`.
-    pub fn new(scene: &Scene, header: &VolumeHeader, width: usize, height: usize) -> SceneRecord {
+    /// The record of `scene` rendered from volumes described by `headers` (in the
+    /// order of its volumes, as placed) at `width` x `height`.
+    pub fn new(
+        scene: &Scene,
+        headers: &[VolumeHeader],
+        width: usize,
+        height: usize,
+    ) -> SceneRecord {
         SceneRecord {
             file: scene.path.clone(),
             text: scene.text.clone(),
             resolved: resolved_scene(scene),
-            digest: scene_digest(scene, header, width, height),
+            digest: scene_digest(scene, headers, width, height),
         }
     }
 }
@@ -809,8 +836,8 @@ pub struct ManifestHead<'a> {
     pub scene: &'a SceneRecord,
     /// The run's outputs: the passes and frames whose records are merged.
     pub outputs: &'a super::Outputs,
-    /// Its volume's header.
-    pub header: &'a VolumeHeader,
+    /// Its volumes' names and headers (as placed), in the scene's order.
+    pub headers: Vec<(&'a str, &'a VolumeHeader)>,
     /// Its voxel data's identity.
     pub identity: &'a VolumeIdentity,
     /// [`data_digest`].
@@ -865,11 +892,23 @@ pub fn write_manifest(
                 "resolved": scene.resolved,
             },
             "render_size": [head.size.0, head.size.1],
-            "volume": volume_json(head.header, head.identity),
+            "volume": volume_json(head.headers[0].1, head.identity),
             "windows": windows,
             "totals": { "seconds": seconds, "samples": samples },
             "frames": records,
         });
+        if let (Value::Object(d), [_, _, ..]) = (&mut doc, head.headers.as_slice()) {
+            // every volume of a scene of several (the data's identity is of all)
+            let volumes = head.headers.iter().map(|(name, h)| {
+                let mut v = volume_json(h, &VolumeIdentity { data_xxh3: None, files: Vec::new() });
+                if let Value::Object(m) = &mut v {
+                    m.remove("data");
+                    m.insert("name".into(), json!(name));
+                }
+                v
+            });
+            d.insert("volumes".into(), Value::Array(volumes.collect()));
+        }
         if let (Value::Object(d), Value::Object(e)) = (&mut doc, extra(&status, &records)?) {
             d.extend(e);
         }
@@ -1019,7 +1058,7 @@ mod tests {
 
     fn digest(text: &str) -> String {
         let s = scene(text);
-        let h = s.volume.source.header().unwrap();
+        let h = vec![s.volume().source.header().unwrap()];
         scene_digest(&s, &h, 8, 8)
     }
 
@@ -1046,7 +1085,7 @@ mod tests {
         assert_ne!(d, digest(&base.replace("[4, 4, 4]", "[4, 4, 5]")));
         assert_ne!(d, digest(&format!("{base}[camera]\nzoom = 1.5\n")));
         let s = scene(base);
-        let h = s.volume.source.header().unwrap();
+        let h = vec![s.volume().source.header().unwrap()];
         assert_ne!(scene_digest(&s, &h, 8, 8), scene_digest(&s, &h, 8, 9));
     }
 

@@ -95,7 +95,7 @@ impl Outputs {
             colorbar: scene.image.colorbar,
             stereo: scene.stereo,
             labels: scene.labels.clone(),
-            units: scene.volume.units,
+            units: scene.volume().units,
             animation: scene.animation.clone(),
         }
     }

@@ -2,6 +2,7 @@
 //! rendered once (stereo reuse), handed to the sink with their grey windows. A
 //! batch is written, by a thread of its own, while the next one renders.
 
+use std::borrow::Borrow;
 use std::collections::{BTreeSet, HashMap, HashSet};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -29,10 +30,10 @@ type Written = Vec<((usize, usize), Vec<PathBuf>)>;
 /// zoom already fitted to the voxels where the scene asks), and hands each to
 /// `emit`'s sink: the grey windows found ([`grey_windows`]), then the frames in batches ([`Schedule`]), each batch's distinct views
 /// rendered on the workers while a thread of its own writes the batch before.
-pub(super) fn render_passes(
+pub(super) fn render_passes<V: Borrow<Volume>>(
     plan: &Plan,
-    volume: &Volume,
-    norm: Normalize,
+    volumes: &[Option<V>],
+    norms: &[Option<Normalize>],
     jobs: &[(usize, usize)],
     emit: &Emit,
 ) -> Result<Summary, Error> {
@@ -41,25 +42,39 @@ pub(super) fn render_passes(
         prepare,
         sink,
     } = *emit;
-    let header = &volume.header;
-    let index_from_world =
-        header
-            .geometry
-            .index_from_world_matrix()
-            .ok_or_else(|| Error::Plan {
-                scene: plan.scene.file.clone(),
-                message: format!("the volume {} has degenerate axes", header.source),
-            })?;
-    let frame = plan.frame;
-    let resources = Resources::build(
-        &volume.data,
-        header.sizes,
-        norm,
-        // without a window, the run's is the data's range (`value_window`)
-        plan.volume.window.is_none(),
-        index_from_world,
-        &plan.passes,
-    );
+    // each loaded volume's precomputations, for the passes (or parts) that read it
+    let mut resources: Vec<Option<Resources>> = Vec::with_capacity(plan.volumes.len());
+    for (k, ((v, loaded), norm)) in plan.volumes.iter().zip(volumes).zip(norms).enumerate() {
+        let (Some(volume), Some(norm)) = (loaded, norm) else {
+            resources.push(None);
+            continue;
+        };
+        let volume = volume.borrow();
+        // where the volume sits, as planned (its transform applied)
+        let index_from_world =
+            v.header
+                .geometry
+                .index_from_world_matrix()
+                .ok_or_else(|| Error::Plan {
+                    scene: plan.scene.file.clone(),
+                    message: format!("the volume {} has degenerate axes", v.header.source),
+                })?;
+        let reads = plan
+            .passes
+            .iter()
+            .flat_map(|p| p.reads())
+            .filter(|(r, _)| *r == k)
+            .map(|(_, p)| p);
+        resources.push(Some(Resources::build(
+            &volume.data,
+            volume.header.sizes,
+            *norm,
+            // without a window, the run's is the data's range (`value_window`)
+            v.spec.window.is_none(),
+            index_from_world,
+            reads,
+        )));
+    }
     let windows = grey_windows(plan, &resources);
 
     prepare()?;
@@ -79,7 +94,7 @@ pub(super) fn render_passes(
                 let rt = &runtimes[&ck.0];
                 let view = view_of(plan, ck.1, (plan.width, plan.height));
                 let t0 = Instant::now();
-                let (film, counts) = rt.render(&view, &frame);
+                let (film, counts) = rt.render(&view, plan.frame_of(&plan.variants[ck.0]));
                 let r = Rendered {
                     view,
                     film,
@@ -210,7 +225,7 @@ fn view_of(plan: &Plan, key: ViewKey, (w, h): (usize, usize)) -> View {
 /// Each pass's grey window: none for colour images and float NRRDs, the pass's
 /// own, or one found from a preview of every distinct view of the whole orbit
 /// (whatever frames this run renders, so that all runs agree).
-fn grey_windows(plan: &Plan, resources: &Resources) -> Vec<Option<Window>> {
+fn grey_windows(plan: &Plan, resources: &[Option<Resources>]) -> Vec<Option<Window>> {
     let views = &plan.views;
     plan.windows
         .iter()
@@ -242,10 +257,9 @@ fn grey_windows(plan: &Plan, resources: &Resources) -> Vec<Option<Window>> {
                         .filter(|&&(u, _)| u == v)
                         .map(|&(_, key)| key)
                         .collect();
+                    let frame = plan.frame_of(&plan.variants[v]);
                     ranges.par_extend(keys.par_iter().map(|&key| {
-                        Window::finite_range(
-                            &rt.render(&view_of(plan, key, plan.preview), &plan.frame).0,
-                        )
+                        Window::finite_range(&rt.render(&view_of(plan, key, plan.preview), frame).0)
                     }));
                 }
                 Some(Window::of_ranges(ranges))

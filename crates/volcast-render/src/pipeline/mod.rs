@@ -18,12 +18,14 @@ mod fit;
 mod frames;
 mod prepare;
 mod resume;
+mod volumes;
 mod write;
 
 pub use prepare::{data_window, value_window};
 pub use resume::completed_images;
 
 use frames::render_passes;
+use volumes::Volumes;
 use resume::{completed, create_folders, finish, jobs};
 use write::write_frame;
 
@@ -40,7 +42,7 @@ use crate::render::{Film, View};
 use crate::scene::Scene;
 use crate::views::Eye;
 use crate::views::ViewKey;
-use crate::volume::{confine, Limits, Volume, VolumeHeader};
+use crate::volume::{confine, Limits, Volume};
 
 /// Reports progress in units of finished (pass, frame) images.
 pub trait Progress: Sync {
@@ -117,8 +119,8 @@ fn render_run(
     progress: &dyn Progress,
 ) -> Result<Summary, Error> {
     let start = Instant::now();
-    let (_scope, header, plan) = preflight(scene, opts, limits)?;
-    let mut summary = run_plan(&plan, &header, opts, limits, progress)?;
+    let (_scope, plan) = preflight(scene, opts, limits)?;
+    let mut summary = run_plan(&plan, opts, limits, progress)?;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok(summary)
 }
@@ -127,7 +129,6 @@ fn render_run(
 /// animations and the page made.
 fn run_plan(
     plan: &Plan,
-    header: &VolumeHeader,
     opts: &RunOptions,
     limits: &Limits,
     progress: &dyn Progress,
@@ -146,7 +147,7 @@ fn run_plan(
     let previous = manifest::read_manifest(&plan.out)?;
     let mut known = Known::find(plan, previous.as_ref(), opts, limits, &mut notes)?;
     if !opts.force {
-        refuse_another_scene(plan, previous.as_ref(), header, &known.digest, &mut notes)?;
+        refuse_another_scene(plan, previous.as_ref(), &known.digest, &mut notes)?;
     }
     let jobs = jobs(plan, &known.done);
     if let (Some(shard), true) = (plan.shard, plan.frame_list.is_empty()) {
@@ -155,12 +156,12 @@ fn run_plan(
             plan.frames.start, plan.frames.end
         ));
     }
-    let mut summary = match known.volume.take() {
+    let mut summary = match known.volumes.take() {
         _ if jobs.is_empty() => Summary::default(),
-        Some(volume) => render_jobs(plan, &volume, &jobs, &known.digest, progress)?,
+        Some(volumes) => render_jobs(plan, &volumes, &jobs, &known.digest, progress)?,
         None => {
-            let volume = plan.volume.source.load(limits)?;
-            render_jobs(plan, &volume, &jobs, &known.digest, progress)?
+            let volumes = volumes::load(plan, limits)?;
+            render_jobs(plan, &volumes, &jobs, &known.digest, progress)?
         }
     };
     summary.skipped = if opts.finish_only {
@@ -170,7 +171,7 @@ fn run_plan(
     };
     notes.append(&mut summary.notes);
     summary.notes = notes;
-    finish(plan, header, &known.identity, &known.digest, &mut summary)?;
+    finish(plan, &known.identity, &known.digest, &mut summary)?;
     Ok(summary)
 }
 
@@ -181,7 +182,6 @@ fn run_plan(
 fn refuse_another_scene(
     plan: &Plan,
     previous: Option<&serde_json::Value>,
-    header: &VolumeHeader,
     digest: &str,
     notes: &mut Vec<String>,
 ) -> Result<(), Error> {
@@ -217,7 +217,13 @@ fn refuse_another_scene(
     } else if version != env!("CARGO_PKG_VERSION") {
         format!("this scene rendered by volcast {version}")
     } else {
-        format!("this scene with other voxels in {}", header.source)
+        let sources: Vec<&str> = plan
+            .volumes
+            .iter()
+            .filter(|v| v.is_read())
+            .map(|v| v.header.source.as_str())
+            .collect();
+        format!("this scene with other voxels in {}", sources.join(", "))
     };
     notes.push(format!(
         "{} held the images of {why}: the frames rendered now replace them",
@@ -235,14 +241,14 @@ fn same_file(recorded: &Path, now: &Path) -> bool {
     }
 }
 
-/// What a run finds before it renders: which voxels the volume holds, the digest
+/// What a run finds before it renders: which voxels the volumes hold, the digest
 /// its images are recorded under, and which (pass, frame) images already exist for
-/// them; with the volume itself when it had to be read to know its voxels.
+/// them; with the volumes themselves when they had to be read to know their voxels.
 struct Known {
     identity: crate::volume::VolumeIdentity,
     digest: String,
     done: HashSet<(usize, usize)>,
-    volume: Option<Volume>,
+    volumes: Option<Volumes>,
 }
 
 impl Known {
@@ -281,7 +287,7 @@ impl Known {
                 }
             };
         // the volume as read, and what is done for its voxels
-        let known = |volume: Volume,
+        let known = |volumes: Volumes,
                      identity: crate::volume::VolumeIdentity,
                      notes: &mut Vec<String>|
          -> Result<Known, Error> {
@@ -291,13 +297,12 @@ impl Known {
                 identity,
                 digest,
                 done,
-                volume: Some(volume),
+                volumes: Some(volumes),
             })
         };
-        let source = &plan.volume.source;
         let Some(recorded) = resume::trusted_identity(plan, previous)? else {
-            let (volume, identity) = source.load_identified(limits)?;
-            return known(volume, identity, notes);
+            let (volumes, identity) = volumes::load_identified(plan, limits)?;
+            return known(volumes, identity, notes);
         };
         let digest = manifest::data_digest(layout, recorded.data_xxh3.as_deref());
         let done = done_for(&digest, notes)?;
@@ -306,37 +311,37 @@ impl Known {
                 identity: recorded,
                 digest,
                 done,
-                volume: None,
+                volumes: None,
             });
         }
         // something is left to render: read the voxels, and if they are not the
         // recorded ones, find what is done for the voxels there are
-        let (volume, now) = source.load_identified(limits)?;
+        let (volumes, now) = volumes::load_identified(plan, limits)?;
         if now.data_xxh3 == recorded.data_xxh3 {
             return Ok(Known {
                 identity: now,
                 digest,
                 done,
-                volume: Some(volume),
+                volumes: Some(volumes),
             });
         }
         // (the damaged records were noted above)
-        known(volume, now, &mut Vec::new())
+        known(volumes, now, &mut Vec::new())
     }
 }
 
-/// Renders the (pass, frame) images `jobs` of a loaded volume and writes each with
-/// its manifest record: the value window, the zoom fitted where the scene asks
-/// (the plan the frames then render), then the frames.
+/// Renders the (pass, frame) images `jobs` of the loaded volumes and writes each
+/// with its manifest record: the value windows, the zoom fitted where the scene
+/// asks (the plan the frames then render), then the frames.
 fn render_jobs(
     plan: &Plan,
-    volume: &Volume,
+    volumes: &Volumes,
     jobs: &[(usize, usize)],
     digest: &str,
     progress: &dyn Progress,
 ) -> Result<Summary, Error> {
-    let norm = value_window(&plan.volume, &plan.scene.file, volume)?;
-    let fitted = fit::fit(plan, volume, norm)?;
+    let norms = volumes::norms(plan, volumes)?;
+    let fitted = fit::fit(plan, volumes, &norms)?;
     let plan = fitted.as_ref().map_or(plan, |f| &f.plan);
     let shard = plan.shard.map(|s| s.to_string());
     let prepare = || create_folders(&plan.out);
@@ -370,7 +375,7 @@ fn render_jobs(
         prepare: &prepare,
         sink: &sink,
     };
-    let mut summary = render_passes(plan, volume, norm, jobs, &emit)?;
+    let mut summary = render_passes(plan, volumes, &norms, jobs, &emit)?;
     summary.notes.extend(fitted.map(|f| f.note));
     Ok(summary)
 }
@@ -383,24 +388,34 @@ pub fn confine_run(scene: &Scene, opts: &RunOptions) -> Result<Option<confine::S
         return Ok(None);
     };
     let root = confine::Root::new(dir)?;
-    confine::check_source(&scene.volume.source, &root)?;
+    for v in &scene.volumes {
+        confine::check_source(&v.spec.source, &root)?;
+    }
     confine::check_output(opts.out.as_deref().unwrap_or(&scene.image.out), &root)?;
     Ok(Some(confine::Scope::enter(&root)))
 }
 
 /// What a run checks before it reads a voxel: `--confine` (the scope it returns
 /// keeps checking files as they are opened: keep it alive while loading), the
-/// volume's header, the plan, and the plan's memory estimate against `limits`.
+/// volumes' headers, the plan, and the plan's memory estimate against `limits`.
 fn preflight(
     scene: &Scene,
     opts: &RunOptions,
     limits: &Limits,
-) -> Result<(Option<confine::Scope>, VolumeHeader, Plan), Error> {
+) -> Result<(Option<confine::Scope>, Plan), Error> {
     let scope = confine_run(scene, opts)?;
-    let header = scene.volume.source.header()?;
-    let plan = Plan::build(scene, &header, opts)?;
+    let plan = Plan::build(scene, &headers(scene)?, opts)?;
     plan.check_memory(limits)?;
-    Ok((scope, header, plan))
+    Ok((scope, plan))
+}
+
+/// The headers of the scene's volumes, in its order (no voxels read).
+pub fn headers(scene: &Scene) -> Result<Vec<crate::volume::VolumeHeader>, Error> {
+    scene
+        .volumes
+        .iter()
+        .map(|v| v.spec.source.header().map_err(Error::from))
+        .collect()
 }
 
 /// One rendered view, kept in memory.
@@ -428,33 +443,38 @@ pub fn render_films(
     opts: &RunOptions,
     limits: &Limits,
 ) -> Result<(Vec<RenderedView>, Summary), Error> {
-    let (_scope, _, plan) = preflight(scene, opts, limits)?;
+    let (_scope, plan) = preflight(scene, opts, limits)?;
     let start = Instant::now();
-    let volume = plan.volume.source.load(limits)?;
-    let (views, mut summary) = films_of_plan(&plan, &volume)?;
+    let volumes = volumes::load(&plan, limits)?;
+    let (views, mut summary) = films_of_plan(&plan, &volumes)?;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok((views, summary))
 }
 
-/// [`render_films`] of a volume already loaded (`volume` must be the scene's: the
-/// benchmarks render many scenes of one volume). The summary's time excludes
-/// loading.
+/// [`render_films`] of a scene of one volume, already loaded (`volume` must be
+/// the scene's: the benchmarks render many scenes of one volume). The summary's
+/// time excludes loading.
 pub fn render_films_of(
     scene: &Scene,
     volume: &Volume,
     opts: &RunOptions,
 ) -> Result<(Vec<RenderedView>, Summary), Error> {
     let start = Instant::now();
-    let plan = Plan::build(scene, &volume.header, opts)?;
-    let (views, mut summary) = films_of_plan(&plan, volume)?;
+    let plan = Plan::build(scene, std::slice::from_ref(&volume.header), opts)?;
+    // (a borrowed volume: the plan's one volume, read by its passes)
+    let volumes = [Some(volume)];
+    let (views, mut summary) = films_of_plan(&plan, &volumes)?;
     summary.seconds = start.elapsed().as_secs_f64();
     Ok((views, summary))
 }
 
-/// The films of every (pass, frame) of `plan`, rendered from `volume`.
-fn films_of_plan(plan: &Plan, volume: &Volume) -> Result<(Vec<RenderedView>, Summary), Error> {
-    let norm = value_window(&plan.volume, &plan.scene.file, volume)?;
-    let fitted = fit::fit(plan, volume, norm)?;
+/// The films of every (pass, frame) of `plan`, rendered from `volumes`.
+fn films_of_plan<V: std::borrow::Borrow<Volume>>(
+    plan: &Plan,
+    volumes: &[Option<V>],
+) -> Result<(Vec<RenderedView>, Summary), Error> {
+    let norms = volumes::norms(plan, volumes)?;
+    let fitted = fit::fit(plan, volumes, &norms)?;
     let plan = fitted.as_ref().map_or(plan, |f| &f.plan);
     let collected = std::sync::Mutex::new(Vec::new());
     let sink = |fv: &FrameViews| {
@@ -475,7 +495,7 @@ fn films_of_plan(plan: &Plan, volume: &Volume) -> Result<(Vec<RenderedView>, Sum
         prepare: &|| Ok(()),
         sink: &sink,
     };
-    let mut summary = render_passes(plan, volume, norm, &jobs, &emit)?;
+    let mut summary = render_passes(plan, volumes, &norms, &jobs, &emit)?;
     summary.notes.extend(fitted.map(|f| f.note));
     let mut views = collected
         .into_inner()

@@ -14,7 +14,7 @@ use crate::output::manifest::{self, FrameRecord, ManifestHead, ManifestStatus};
 use crate::output::{animation, frame_path, viewer, Outputs};
 use crate::plan::Plan;
 use crate::scene::Format;
-use crate::volume::{VolumeHeader, VolumeIdentity};
+use crate::volume::VolumeIdentity;
 
 /// How many (pass, frame) images of the plan's frames `--resume` would skip, when
 /// that can be told without reading the voxels: `None` when the volume's files
@@ -29,15 +29,15 @@ pub fn completed_images(plan: &Plan) -> Result<Option<usize>, Error> {
     Ok(Some(completed(plan, &digest, &mut Vec::new())?.len()))
 }
 
-/// The identity of the voxels when it is known without reading them: a synthetic
-/// field's (its scene defines it), or the one `manifest.json` recorded if every file
-/// of the plan's volume still has the recorded size and modification time.
+/// The identity of the voxels when it is known without reading them: synthetic
+/// fields' (their scene defines them), or the one `manifest.json` recorded if every
+/// file of the volumes the passes read still has the recorded size and
+/// modification time.
 pub(super) fn trusted_identity(
     plan: &Plan,
     previous: Option<&serde_json::Value>,
 ) -> Result<Option<VolumeIdentity>, Error> {
-    let source = &plan.volume.source;
-    if source.is_synthetic() {
+    if super::volumes::all_synthetic(plan) {
         return Ok(Some(VolumeIdentity {
             data_xxh3: None,
             files: Vec::new(),
@@ -46,7 +46,7 @@ pub(super) fn trusted_identity(
     let Some(recorded) = previous.and_then(manifest::recorded_identity) else {
         return Ok(None);
     };
-    let now = source.stamps()?;
+    let now = super::volumes::stamps(plan)?;
     Ok((recorded.data_xxh3.is_some() && recorded.files == now).then_some(recorded))
 }
 
@@ -157,7 +157,6 @@ pub(super) fn remove_empty_folders(folders: &[PathBuf]) {
 /// complete (it is small, and the same records give the same bytes).
 pub(super) fn finish(
     plan: &Plan,
-    header: &VolumeHeader,
     identity: &VolumeIdentity,
     digest: &str,
     summary: &mut Summary,
@@ -200,7 +199,11 @@ pub(super) fn finish(
     let head = ManifestHead {
         scene: &plan.scene,
         outputs,
-        header,
+        headers: plan
+            .volumes
+            .iter()
+            .map(|v| (v.name.as_str(), &v.header))
+            .collect(),
         identity,
         digest,
         size: (plan.width, plan.height),

@@ -152,6 +152,26 @@ pub trait RayMode: std::fmt::Debug + Send + Sync {
     /// tables and its integrand, and hands it to [`RenderPass::render_with`].
     fn view<'a>(&'a self, pass: &'a RenderPass, res: &'a Resources<'a>)
         -> Box<dyn RenderView + 'a>;
+
+    /// The view of `pass` over the precomputations of every volume of the run
+    /// (`res[k]`: volume `k`'s, where a pass reads it): by default
+    /// [`RayMode::view`] over the pass's own volume; a pass over several volumes
+    /// reads each of its parts' ([`RenderPass::parts`]).
+    fn view_of_volumes<'a>(
+        &'a self,
+        pass: &'a RenderPass,
+        res: &'a [Option<Resources<'a>>],
+    ) -> Box<dyn RenderView + 'a> {
+        let r = res[pass.volume]
+            .as_ref()
+            .expect("the run prepares every volume a pass reads");
+        assert_eq!(
+            r.data.scalar_type(),
+            pass.scalar_type,
+            "the volume has the type its header announced"
+        );
+        self.view(pass, r)
+    }
 }
 
 /// How a pass samples, as the scene gives it (the mode aside).
@@ -191,6 +211,11 @@ pub struct RenderPass {
     needs: Needs,
     scalar_type: ScalarType,
     clips: Vec<ClipPlane>,
+    /// The volume it reads (an index into the run's volumes; a blend's first).
+    volume: usize,
+    /// A pass over several volumes: each volume's part, as a pass of its own over
+    /// that volume (its needs, its field); empty for a pass over one volume.
+    parts: Vec<(usize, RenderPass)>,
 }
 
 impl RenderPass {
@@ -248,11 +273,66 @@ impl RenderPass {
             },
             scalar_type,
             clips: Vec::new(),
+            volume: 0,
+            parts: Vec::new(),
         }
+    }
+
+    /// A pass of `mode` over several volumes, whose `parts` are each volume's (its
+    /// index among the run's volumes, and its part as a pass of its own, sampled
+    /// as this pass is). The parts carry what each volume needs; the pass itself
+    /// needs nothing more.
+    pub fn blend(
+        sampling: Sampling,
+        mode: std::sync::Arc<dyn RayMode>,
+        voxel_length: f64,
+        parts: Vec<(usize, RenderPass)>,
+    ) -> RenderPass {
+        let (volume, first) = parts.first().expect("a blend has parts");
+        let (volume, scalar_type) = (*volume, first.scalar_type);
+        let mut pass = RenderPass::new(sampling, mode, scalar_type, voxel_length, false);
+        pass.needs = Needs::default();
+        pass.volume = volume;
+        pass.parts = parts;
+        pass
+    }
+
+    /// The pass over volume `volume` of the run (an index into its volumes).
+    pub fn on_volume(mut self, volume: usize) -> RenderPass {
+        self.volume = volume;
+        self
+    }
+
+    /// The volume the pass reads (a blend's first).
+    pub fn volume(&self) -> usize {
+        self.volume
+    }
+
+    /// Each volume's part of a pass over several volumes (empty for one volume).
+    pub fn parts(&self) -> &[(usize, RenderPass)] {
+        &self.parts
+    }
+
+    /// What the pass reads: each volume with the pass that reads it (itself, or
+    /// its parts), for the precomputations.
+    pub fn reads(&self) -> Vec<(usize, &RenderPass)> {
+        if self.parts.is_empty() {
+            vec![(self.volume, self)]
+        } else {
+            self.parts.iter().map(|(k, p)| (*k, p)).collect()
+        }
+    }
+
+    /// The per-pass seed of its jittered first samples (`None`: no jitter).
+    pub fn jitter_seed(&self) -> Option<u64> {
+        self.jitter
     }
 
     /// The pass with the clipping planes that apply to it (world coordinates).
     pub fn with_clips(mut self, clips: Vec<ClipPlane>) -> RenderPass {
+        for (_, p) in &mut self.parts {
+            p.clips = clips.clone();
+        }
         self.clips = clips;
         self
     }
@@ -371,16 +451,34 @@ impl RenderPass {
         needs
     }
 
-    /// Builds the pass's tables over the run's shared precomputations and returns
-    /// it ready to render. The mode builds its integrand ([`RayMode::view`]) and
+    /// Builds the pass's tables over the run's shared precomputations (`res[k]`,
+    /// volume `k`'s, for every volume it reads) and returns it ready to render.
+    /// The mode builds its integrand ([`RayMode::view`]) and
     /// [`RenderPass::render_with`] meets it with the voxel type and the filter.
-    pub fn prepare<'a>(&'a self, res: &'a Resources<'a>) -> Box<dyn RenderView + 'a> {
-        assert_eq!(
-            res.data.scalar_type(),
-            self.scalar_type,
-            "the volume has the type its header announced"
-        );
-        self.mode.view(self, res)
+    pub fn prepare<'a>(&'a self, res: &'a [Option<Resources<'a>>]) -> Box<dyn RenderView + 'a> {
+        self.mode.view_of_volumes(self, res)
+    }
+
+    /// The pass's reconstruction of its volume behind a virtual call (its
+    /// samples the same bits as [`RenderPass::render_with`]'s): what a pass over
+    /// several volumes samples each of them with, a batch of samples per call.
+    pub fn boxed_field<'a>(&'a self, res: &'a Resources<'a>) -> Box<dyn Field + 'a> {
+        match self.interpolation {
+            Interpolation::Cubic => {
+                let coefficients = res
+                    .coefficients
+                    .as_deref()
+                    .expect("the plan makes coefficients for cubic passes");
+                Box::new(Cubic::new(
+                    coefficients,
+                    res.sizes,
+                    self.gradient,
+                    res.index_from_world.transpose(),
+                    self.dyn_field(res, Interpolation::Trilinear),
+                ))
+            }
+            interpolation => self.dyn_field(res, interpolation),
+        }
     }
 
     /// The pass's macrocell grid among the run's precomputations, if it skips.

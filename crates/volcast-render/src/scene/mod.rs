@@ -36,8 +36,9 @@ pub struct Scene {
     pub path: PathBuf,
     /// The file name without extension (`{scene}` in `out`).
     pub name: String,
-    /// Where the voxels come from and how values are normalised.
-    pub volume: VolumeSpec,
+    /// The volumes (`[volume]`, or the `[[volume]]` tables in file order; at least
+    /// one): each pass reads one of them, a composite pass may blend several.
+    pub volumes: Vec<SceneVolume>,
     /// The camera at frame 0.
     pub camera: Camera,
     /// The turntable.
@@ -66,6 +67,44 @@ pub struct Scene {
     pub text: String,
     /// Legal but suspicious settings, to print before rendering.
     pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// The first volume (the only one of a `[volume]` scene): what the tools that
+    /// read one volume (`histogram`, `info`) take.
+    pub fn volume(&self) -> &VolumeSpec {
+        &self.volumes[0].spec
+    }
+}
+
+/// One volume of a scene: its name, its source and window, and where it sits.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneVolume {
+    /// `name` (passes name their volume by it); `volume` for a `[volume]` without one.
+    pub name: String,
+    /// Where its voxels come from and how its values are normalised.
+    pub spec: VolumeSpec,
+    /// `transform`: a world-from-file map applied after the file's own geometry.
+    pub transform: Option<Transform>,
+}
+
+/// An affine world-from-file map (`transform`, a registration): `x' = m x + t`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transform {
+    /// The linear part (rotation, scale, shear); invertible.
+    pub matrix: glam::DMat3,
+    /// The translation.
+    pub translation: DVec3,
+}
+
+impl Transform {
+    /// The file's geometry moved by the transform: the same voxels at `m x + t`.
+    pub fn place(&self, g: &crate::volume::Geometry) -> crate::volume::Geometry {
+        crate::volume::Geometry {
+            origin: self.matrix * g.origin + self.translation,
+            axes: g.axes.map(|a| self.matrix * a),
+        }
+    }
 }
 
 /// The volume source and its value window.
@@ -304,6 +343,10 @@ pub struct RenderPass {
     pub name: String,
     /// Mode and its settings.
     pub mode: Arc<dyn Mode>,
+    /// The volumes it reads, as indices into [`Scene::volumes`] (`volume`, or a
+    /// composite's `volumes`; never empty): the first is the pass's own, whose
+    /// units its values are written in.
+    pub volumes: Vec<usize>,
     /// Sample spacing in voxels of the smallest axis spacing.
     pub step_voxels: f64,
     /// Reconstruction filter.

@@ -17,7 +17,8 @@ pub type Sp<T> = Option<Spanned<T>>;
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
-    pub volume: Spanned<VolumeTable>,
+    /// `[volume]` (one table) or `[[volume]]` (an array of named tables).
+    pub volume: Spanned<VolumeTables>,
     pub camera: Option<Spanned<CameraTable>>,
     pub orbit: Option<Spanned<OrbitTable>>,
     pub stereo: Option<Spanned<StereoTable>>,
@@ -55,9 +56,56 @@ pub struct ClipTable {
     pub passes: Sp<Vec<Spanned<String>>>,
 }
 
+/// `[volume]`, or `[[volume]]` tables.
+#[derive(Debug)]
+pub enum VolumeTables {
+    One(VolumeTable),
+    Many(Vec<Spanned<VolumeTable>>),
+}
+
+impl<'de> Deserialize<'de> for VolumeTables {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Tables;
+        impl<'de> serde::de::Visitor<'de> for Tables {
+            type Value = VolumeTables;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a [volume] table or [[volume]] tables")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<VolumeTables, A::Error> {
+                VolumeTable::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    .map(VolumeTables::One)
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, seq: A) -> Result<VolumeTables, A::Error> {
+                Vec::<Spanned<VolumeTable>>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
+                    .map(VolumeTables::Many)
+            }
+        }
+        d.deserialize_any(Tables)
+    }
+}
+
+/// `transform`: a 4 x 4 row-major matrix, as four rows or sixteen numbers.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub enum MatrixValue {
+    Rows(Vec<Vec<f64>>),
+    Flat(Vec<f64>),
+}
+
+/// A composite pass's `transfer`: one name, or one per volume.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub enum TransferChoice {
+    Name(String),
+    PerVolume(BTreeMap<String, String>),
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct VolumeTable {
+    // several volumes
+    pub name: Sp<String>,
+    pub transform: Sp<MatrixValue>,
     pub path: Sp<String>,
     pub format: Sp<String>,
     pub window: Sp<[f64; 2]>,
@@ -205,8 +253,11 @@ pub struct RenderTable {
     pub material: Sp<String>,
     pub shading: Sp<String>,
     pub gradient: Sp<String>,
+    // the volume it reads
+    pub volume: Sp<String>,
     // composite
-    pub transfer: Sp<String>,
+    pub volumes: Sp<Vec<Spanned<String>>>,
+    pub transfer: Sp<TransferChoice>,
     pub reference_step: Sp<f64>,
     pub early_stop: Sp<f64>,
     pub preintegrated: Sp<bool>,
@@ -231,6 +282,7 @@ impl RenderTable {
         k(&mut out, "shading", &self.shading);
         k(&mut out, "gradient", &self.gradient);
         k(&mut out, "transfer", &self.transfer);
+        k(&mut out, "volumes", &self.volumes);
         k(&mut out, "reference_step", &self.reference_step);
         k(&mut out, "early_stop", &self.early_stop);
         k(&mut out, "window", &self.window);

@@ -434,6 +434,88 @@ impl Integrand for Composite {
 }
 
 impl Composite {
+    /// The colour (shaded where the pass shades) and opacity of midpoint `i` of
+    /// `march`, at `t`, of value `v`: `None` where it is transparent. Its opacity
+    /// is corrected for the segment's length (whole steps read the table corrected
+    /// once).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn midpoint<T: Lookup, F: Field>(
+        &self,
+        tables: &Pair<T>,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        i: usize,
+        t: f64,
+        v: f32,
+        to_eye: Vec3,
+    ) -> Option<(Vec4, f32)> {
+        let x = self.position_unless_clear(v)?;
+        let full = march.is_full_step(i + 1);
+        let pos = || ray.index.at(t);
+        // SAFETY (both lookups): x is in [0, value_last]
+        // (`Composite::position_unless_clear`), and both tables have value_last + 1
+        // entries along the value axis (`Composite::new`)
+        let (rgba, grad, a) = if full {
+            // opacity already corrected for a whole step
+            let (rgba, grad) = unsafe { tables.full_step.rgba(field, pos, v, x, self.voxel_length) };
+            (rgba, grad, rgba[3])
+        } else {
+            let length = march.t(i + 1) - march.t(i);
+            if length <= 0.0 {
+                return None;
+            }
+            let (rgba, grad) = unsafe { tables.given.rgba(field, pos, v, x, self.voxel_length) };
+            let a = correct_opacity(rgba[3], (length / self.reference_step) as f32);
+            (rgba, grad, a)
+        };
+        if a <= 0.0 {
+            return None;
+        }
+        let base = Vec4::from_array(rgba);
+        let c = shade(self.shader.as_ref(), field, ray, t, grad, base, to_eye);
+        Some((c, a))
+    }
+
+    /// [`Composite::midpoint`] through the pass's own tables (of either kind): one
+    /// volume's part of a sample that several volumes blend (`blend.rs`).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(super) fn midpoint_of<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        i: usize,
+        t: f64,
+        v: f32,
+        to_eye: Vec3,
+    ) -> Option<(Vec4, f32)> {
+        match &self.tables {
+            Tables::OneD(tables) => self.midpoint(tables, field, ray, march, i, t, v, to_eye),
+            Tables::TwoD(tables) => self.midpoint(tables, field, ray, march, i, t, v, to_eye),
+        }
+    }
+
+    /// Whether the transfer function is transparent over macrocell `cell`, and the
+    /// mask of its octants over which it is (for `blend.rs`).
+    #[inline(always)]
+    pub(super) fn transparency(&self, cell: usize) -> (bool, u8) {
+        (
+            self.transparent_cell(cell),
+            self.transparent_parts.get(cell).copied().unwrap_or(0),
+        )
+    }
+
+    /// Whether the transfer function is transparent over octant `octant` of `cell`.
+    #[inline(always)]
+    pub(super) fn transparent_octant(&self, cell: usize, octant: usize) -> bool {
+        self.transparent_part(cell, octant)
+    }
+}
+
+impl Composite {
     /// Composites the midpoint samples of `march` through `tables` (shading
     /// towards `to_eye`); the pixel and the samples taken.
     #[inline(always)]
@@ -562,50 +644,13 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     /// Midpoint `i` is the middle of the segment from sample `i` to sample `i + 1`.
     #[inline(always)]
     fn take(&mut self, i: usize, t: f64, v: f32) -> ControlFlow<()> {
-        let p = self.pass;
-        let Some(x) = p.position_unless_clear(v) else {
-            return ControlFlow::Continue(());
-        };
-        let full = self.march.is_full_step(i + 1);
-        let pos = || self.ray.index.at(t);
-        // SAFETY (both lookups): x is in [0, value_last]
-        // (`Composite::position_unless_clear`), and both tables have value_last + 1
-        // entries along the value axis (`Composite::new`)
-        let (rgba, grad, a) = if full {
-            // opacity already corrected for a whole step
-            let (rgba, grad) = unsafe {
-                self.tables
-                    .full_step
-                    .rgba(self.field, pos, v, x, p.voxel_length)
-            };
-            (rgba, grad, rgba[3])
-        } else {
-            let length = self.march.t(i + 1) - self.march.t(i);
-            if length <= 0.0 {
-                return ControlFlow::Continue(());
-            }
-            let (rgba, grad) = unsafe {
-                self.tables
-                    .given
-                    .rgba(self.field, pos, v, x, p.voxel_length)
-            };
-            let a = correct_opacity(rgba[3], (length / p.reference_step) as f32);
-            (rgba, grad, a)
-        };
-        if a <= 0.0 {
-            return ControlFlow::Continue(());
+        match self
+            .pass
+            .midpoint(self.tables, self.field, self.ray, self.march, i, t, v, self.to_eye)
+        {
+            Some((c, a)) => self.acc.add(c, a),
+            None => ControlFlow::Continue(()),
         }
-        let base = Vec4::from_array(rgba);
-        let c = shade(
-            p.shader.as_ref(),
-            self.field,
-            self.ray,
-            t,
-            grad,
-            base,
-            self.to_eye,
-        );
-        self.acc.add(c, a)
     }
 }
 
@@ -796,7 +841,7 @@ fn shaded<F: Field>(
 /// product of its own, so that one sample waits on the one before it for a single
 /// multiplication (not a subtraction, a multiplication and an addition).
 #[derive(Clone, Copy)]
-struct FrontToBack {
+pub(super) struct FrontToBack {
     color: DVec3,
     alpha: f64,
     /// `1 - alpha`, as the product of the samples' `1 - a`.
@@ -805,7 +850,7 @@ struct FrontToBack {
 }
 
 impl FrontToBack {
-    fn new(early_stop: f32) -> FrontToBack {
+    pub(super) fn new(early_stop: f32) -> FrontToBack {
         FrontToBack {
             color: DVec3::ZERO,
             alpha: 0.0,
@@ -817,7 +862,7 @@ impl FrontToBack {
     /// Adds a sample of colour `c` (its first three lanes) and opacity `a`; `Break`
     /// once the ray may stop.
     #[inline(always)]
-    fn add(&mut self, c: Vec4, a: f32) -> ControlFlow<()> {
+    pub(super) fn add(&mut self, c: Vec4, a: f32) -> ControlFlow<()> {
         let a = f64::from(a);
         let w = self.transmit * a;
         self.transmit *= 1.0 - a;
@@ -893,7 +938,7 @@ impl FrontToBack {
     }
 
     /// RGBA, not premultiplied.
-    fn finish(self) -> [f32; 4] {
+    pub(super) fn finish(self) -> [f32; 4] {
         if self.alpha > 0.0 {
             let c = (self.color / self.alpha).as_vec3();
             [c.x, c.y, c.z, self.alpha as f32]

@@ -4,6 +4,7 @@
 
 use std::sync::Arc;
 
+mod blend;
 mod integrator;
 mod unclear;
 
@@ -12,6 +13,7 @@ pub use integrator::{Composite, CompositeTable};
 use super::{Keys, Mode, PassContext, Registration, Shading};
 use crate::render::frame::RenderView;
 use crate::render::pass::{ImageKind, RayMode, RenderPass, Resources};
+use crate::render::IndexFrame;
 use crate::shade::Shader;
 use crate::transfer::{Preintegrated, Transfer, COLOR_ENTRIES, INTEGRAL_ENTRIES};
 use crate::volume::human_bytes;
@@ -33,6 +35,7 @@ pub const COMPOSITE: Registration = Registration {
         "early_stop",
         "jitter",
         "preintegrated",
+        "volumes",
     ],
     window_in_values: |_| false,
     resolve: |keys| Some(Arc::new(resolve(keys)?)),
@@ -51,18 +54,25 @@ fn resolve(keys: &mut dyn Keys) -> Option<CompositeSettings> {
         }
     }
     let shading = if shaded { Some(keys.shading()?) } else { None };
-    let (transfer_name, transfer) = keys.transfer()?;
+    let mut transfers = keys.transfers()?;
+    let (transfer_name, transfer) = transfers.remove(0);
+    let more = transfers;
     let preintegrated = keys.flag("preintegrated");
+    if preintegrated && !more.is_empty() {
+        keys.error("preintegrated", "preintegrated = true tabulates the segments of one transfer function: a composite of several volumes blends midpoint samples (remove preintegrated, or composite one volume)".into());
+    }
     if let (true, Transfer::TwoD(_)) = (preintegrated, &transfer) {
         keys.error("preintegrated", format!(
             "preintegrated = true needs a 1D transfer function, but `{transfer_name}` is 2D (value x gradient magnitude); pre-integration tabulates segments over (front value, back value)"
         ));
     }
-    if let Transfer::OneD(tf) = &transfer {
-        if tf.max_alpha() == 0.0 {
-            keys.warn(format!(
-                "pass `{name}`: transfer function `{transfer_name}` has zero alpha everywhere: the image will be empty"
-            ));
+    if more.is_empty() {
+        if let Transfer::OneD(tf) = &transfer {
+            if tf.max_alpha() == 0.0 {
+                keys.warn(format!(
+                    "pass `{name}`: transfer function `{transfer_name}` has zero alpha everywhere: the image will be empty"
+                ));
+            }
         }
     }
     Some(CompositeSettings {
@@ -82,6 +92,7 @@ fn resolve(keys: &mut dyn Keys) -> Option<CompositeSettings> {
             "an opacity in (0, 1]",
         ),
         preintegrated,
+        more,
     })
 }
 
@@ -100,6 +111,36 @@ pub struct CompositeSettings {
     pub early_stop: f64,
     /// Pre-integrated segments (1D transfer functions only).
     pub preintegrated: bool,
+    /// The transfer functions (with their names) of the pass's other volumes, in
+    /// the order of its `volumes` (empty: it composites one volume).
+    pub more: Vec<(String, Transfer)>,
+}
+
+impl CompositeSettings {
+    /// The pass of one volume's part: its transfer function, the rest the same.
+    fn part(&self, k: usize) -> Option<CompositeSettings> {
+        let (transfer_name, transfer) = match k {
+            0 => (self.transfer_name.clone(), self.transfer.clone()),
+            _ => self.more.get(k - 1)?.clone(),
+        };
+        Some(CompositeSettings {
+            transfer_name,
+            transfer,
+            more: Vec::new(),
+            ..self.clone()
+        })
+    }
+
+    fn pass(&self, ctx: &PassContext) -> CompositePass {
+        CompositePass {
+            transfer_name: self.transfer_name.clone(),
+            transfer: self.transfer.clone(),
+            shader: self.shading.as_ref().map(|s| s.shader(ctx.light)),
+            reference_step_voxels: self.reference_step_voxels,
+            early_stop: self.early_stop as f32,
+            preintegrated: self.preintegrated && matches!(self.transfer, Transfer::OneD(_)),
+        }
+    }
 }
 
 impl Mode for CompositeSettings {
@@ -125,7 +166,15 @@ impl Mode for CompositeSettings {
 
     fn manifest(&self) -> serde_json::Map<String, serde_json::Value> {
         let mut m = serde_json::Map::new();
-        m.insert("transfer".into(), self.transfer_name.clone().into());
+        if self.more.is_empty() {
+            m.insert("transfer".into(), self.transfer_name.clone().into());
+        } else {
+            let names = std::iter::once(&self.transfer_name).chain(self.more.iter().map(|(n, _)| n));
+            m.insert(
+                "transfers".into(),
+                names.map(|n| serde_json::Value::from(n.clone())).collect(),
+            );
+        }
         m.insert(
             "reference_step_voxels".into(),
             self.reference_step_voxels.into(),
@@ -135,13 +184,87 @@ impl Mode for CompositeSettings {
     }
 
     fn plan(&self, ctx: &PassContext) -> Arc<dyn RayMode> {
-        Arc::new(CompositePass {
-            transfer_name: self.transfer_name.clone(),
-            transfer: self.transfer.clone(),
-            shader: self.shading.as_ref().map(|s| s.shader(ctx.light)),
-            reference_step_voxels: self.reference_step_voxels,
+        Arc::new(self.pass(ctx))
+    }
+
+    fn part(&self, k: usize) -> Option<Arc<dyn Mode>> {
+        if self.more.is_empty() {
+            return None;
+        }
+        Some(Arc::new(CompositeSettings::part(self, k)?))
+    }
+
+    fn plan_blend(&self, ctx: &PassContext, frames: Vec<IndexFrame>) -> Option<Arc<dyn RayMode>> {
+        if self.more.is_empty() {
+            return None;
+        }
+        let layers = (0..=self.more.len())
+            .filter_map(|k| Some(CompositeSettings::part(self, k)?.pass(ctx)))
+            .collect();
+        Some(Arc::new(BlendPass {
+            layers,
+            frames,
             early_stop: self.early_stop as f32,
-            preintegrated: self.preintegrated && matches!(self.transfer, Transfer::OneD(_)),
+        }))
+    }
+}
+
+/// A composite of several volumes as it renders (`blend.rs`): each volume's part
+/// as its own composite pass would classify and shade it, and each volume's frame.
+#[derive(Clone, Debug)]
+struct BlendPass {
+    layers: Vec<CompositePass>,
+    frames: Vec<IndexFrame>,
+    early_stop: f32,
+}
+
+impl RayMode for BlendPass {
+    fn kind(&self) -> ImageKind {
+        ImageKind::Rgba
+    }
+
+    fn skips(&self) -> &'static str {
+        "cells where every volume's transfer function is transparent"
+    }
+
+    fn view<'a>(
+        &'a self,
+        pass: &'a RenderPass,
+        res: &'a Resources<'a>,
+    ) -> Box<dyn RenderView + 'a> {
+        let _ = res;
+        unreachable!("the blend of pass `{}` is prepared over all its volumes (view_of_volumes)", pass.name)
+    }
+
+    fn view_of_volumes<'a>(
+        &'a self,
+        pass: &'a RenderPass,
+        res: &'a [Option<Resources<'a>>],
+    ) -> Box<dyn RenderView + 'a> {
+        let layers = pass
+            .parts()
+            .iter()
+            .zip(&self.layers)
+            .zip(&self.frames)
+            .map(|(((k, part), mode), frame)| {
+                let r = res[*k]
+                    .as_ref()
+                    .expect("the run prepares every volume a pass reads");
+                blend::Layer {
+                    field: part.boxed_field(r),
+                    composite: mode.integrand(part, r),
+                    grid: part.grid(r),
+                    frame: *frame,
+                }
+            })
+            .collect();
+        Box::new(blend::Blend {
+            layers,
+            dt: pass.dt,
+            inv_dt: 1.0 / pass.dt,
+            jitter: pass.jitter_seed(),
+            clips: pass.clips(),
+            early_stop: self.early_stop,
         })
     }
 }
@@ -227,6 +350,14 @@ impl RayMode for CompositePass {
         pass: &'a RenderPass,
         res: &'a Resources<'a>,
     ) -> Box<dyn RenderView + 'a> {
+        pass.render_with(res, self.integrand(pass, res))
+    }
+}
+
+impl CompositePass {
+    /// The integrand of `pass` (this mode's) over the run's precomputations: its
+    /// tables, and the macrocells it passes over.
+    fn integrand(&self, pass: &RenderPass, res: &Resources<'_>) -> Composite {
         let table = match &self.transfer {
             Transfer::OneD(t) => CompositeTable::OneD(t.table(TABLE_1D)),
             Transfer::TwoD(t) => CompositeTable::TwoD(t.table(TABLE_2D, TABLE_2D)),
@@ -250,6 +381,6 @@ impl RayMode for CompositePass {
         if let Some(g) = pass.grid(res) {
             c.classify(g);
         }
-        pass.render_with(res, c)
+        c
     }
 }

@@ -33,6 +33,9 @@ struct Resolver<'a> {
     /// `[volume] window` (or a synthetic field's default), once the volume is
     /// resolved: what places the data-unit knots of transfer-function presets.
     window: Option<[f64; 2]>,
+    /// Each volume's units and window, in the order of the scene's volumes: a
+    /// pass's values are written in its volume's.
+    contexts: Vec<(Units, Option<[f64; 2]>)>,
 }
 
 pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
@@ -52,12 +55,13 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         base_dir,
         units: Units::Normalised,
         window: None,
+        contexts: Vec::new(),
     };
     let name = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "scene".into());
-    let volume = r.volume(&file.volume);
+    let volumes = r.volumes(&file.volume);
     let camera = r.camera(file.camera.as_ref());
     let mut orbit = r.orbit(file.orbit.as_ref());
     let image = r.image(file.image.as_ref(), &name, camera.projection);
@@ -76,7 +80,13 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
     let light = r.light(file.light.as_ref());
     let materials = r.materials(&file.material);
     let transfers = r.transfers(&file.transfer);
-    let passes = r.passes(file.render.as_deref(), &materials, &transfers);
+    let passes = r.passes(
+        file.render.as_deref(),
+        &materials,
+        &transfers,
+        &file.transfer,
+        &volumes,
+    );
     let clips = r.clips(file.clip.as_deref(), &passes);
     let keyframes = r.keyframes(
         file.keyframe.as_deref(),
@@ -101,7 +111,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
     Ok(Scene {
         path: path.to_path_buf(),
         name,
-        volume,
+        volumes,
         camera,
         orbit,
         stereo,

@@ -10,8 +10,8 @@ use super::Resolver;
 use crate::mode::{self, projection::MipOutput, projection::Projection, Keys, Shading};
 use crate::sample::{GradientMethod, Interpolation};
 use crate::scene::diag::{quoted_list, suggest};
-use crate::scene::schema::RenderTable;
-use crate::scene::{Integration, RenderPass, Transfer, Units};
+use crate::scene::schema::{RenderTable, TransferChoice, TransferTable};
+use crate::scene::{Integration, RenderPass, SceneVolume, Transfer, Units};
 use crate::shade::{Material, Model};
 use crate::transfer;
 
@@ -24,7 +24,15 @@ impl Resolver<'_> {
         tables: Option<&[Spanned<RenderTable>]>,
         materials: &BTreeMap<String, Material>,
         transfers: &BTreeMap<String, Transfer>,
+        transfer_tables: &BTreeMap<String, Spanned<TransferTable>>,
+        volumes: &[SceneVolume],
     ) -> Vec<RenderPass> {
+        let scene = SceneParts {
+            materials,
+            transfers,
+            transfer_tables,
+            volumes,
+        };
         let Some(tables) = tables else {
             return vec![RenderPass {
                 name: "mip".into(),
@@ -32,6 +40,7 @@ impl Resolver<'_> {
                     depth_cue: 0.0,
                     output: MipOutput::Value,
                 }),
+                volumes: vec![0],
                 step_voxels: 0.5,
                 interpolation: Interpolation::Trilinear,
                 window: None,
@@ -47,7 +56,7 @@ impl Resolver<'_> {
         let mut passes: Vec<RenderPass> = Vec::new();
         let mut names: BTreeMap<String, Range<usize>> = BTreeMap::new();
         for t in tables {
-            let Some(p) = self.pass(t, materials, transfers) else {
+            let Some(p) = self.pass(t, &scene) else {
                 continue;
             };
             let span = t.get_ref().name.as_ref().map_or(t.span(), |n| n.span());
@@ -58,16 +67,106 @@ impl Resolver<'_> {
             }
             passes.push(p);
         }
+        if volumes.len() > 1 {
+            for (k, vol) in volumes.iter().enumerate() {
+                if !passes.iter().any(|p| p.volumes.contains(&k)) {
+                    self.warnings.push(format!(
+                        "volume `{}` is read by no pass: it is not loaded",
+                        vol.name
+                    ));
+                }
+            }
+        }
         passes
+    }
+
+    /// The volume named `name` (at `span`), or an error naming the scene's.
+    fn volume_named(
+        &mut self,
+        key: &str,
+        name: &Spanned<String>,
+        volumes: &[SceneVolume],
+    ) -> Option<usize> {
+        let n = name.get_ref();
+        if let Some(k) = volumes.iter().position(|v| v.name == *n) {
+            return Some(k);
+        }
+        let names: Vec<&str> = volumes.iter().map(|v| v.name.as_str()).collect();
+        let hint = suggest(n, names.iter().copied())
+            .map(|s| format!("; did you mean `{s}`?"))
+            .unwrap_or_default();
+        self.err(
+            name.span(),
+            format!(
+                "{key} = \"{n}\" is not a volume of this scene: its volumes are {}{hint}",
+                quoted_list(names.iter().copied())
+            ),
+        );
+        None
+    }
+
+    /// The volumes a pass reads: `volume` (default: the first), or a composite's
+    /// `volumes` (checked against the scene's names, each once).
+    fn pass_volumes(&mut self, v: &RenderTable, volumes: &[SceneVolume]) -> Option<Vec<usize>> {
+        match (&v.volume, &v.volumes) {
+            (Some(one), Some(list)) => {
+                self.err(
+                    one.span(),
+                    "give `volume` (the one volume a pass reads) or `volumes` (those a composite blends), not both",
+                );
+                let _ = list;
+                None
+            }
+            (Some(one), None) => Some(vec![self.volume_named("volume", one, volumes)?]),
+            (None, Some(list)) => {
+                if list.get_ref().is_empty() {
+                    self.err(list.span(), "volumes = []: name at least one volume");
+                    return None;
+                }
+                let mut out = Vec::new();
+                let mut ok = true;
+                for name in list.get_ref() {
+                    match self.volume_named("volumes", name, volumes) {
+                        Some(k) if out.contains(&k) => {
+                            self.err(name.span(), format!("volumes: `{}` is named twice", name.get_ref()));
+                            ok = false;
+                        }
+                        Some(k) => out.push(k),
+                        None => ok = false,
+                    }
+                }
+                ok.then_some(out)
+            }
+            (None, None) => Some(vec![0]),
+        }
     }
 
     pub(super) fn pass(
         &mut self,
         t: &Spanned<RenderTable>,
-        materials: &BTreeMap<String, Material>,
-        transfers: &BTreeMap<String, Transfer>,
+        scene: &SceneParts<'_>,
     ) -> Option<RenderPass> {
         let v = t.get_ref();
+        let pass_volumes = self.pass_volumes(v, scene.volumes)?;
+        // the pass's values are in its own volume's units
+        let saved = (self.units, self.window);
+        if let Some(&(units, window)) = self.contexts.get(pass_volumes[0]) {
+            self.units = units;
+            self.window = window;
+        }
+        let pass = self.pass_of(t, scene, pass_volumes);
+        (self.units, self.window) = saved;
+        pass
+    }
+
+    fn pass_of(
+        &mut self,
+        t: &Spanned<RenderTable>,
+        scene: &SceneParts<'_>,
+        volumes: Vec<usize>,
+    ) -> Option<RenderPass> {
+        let v = t.get_ref();
+        let (materials, transfers) = (scene.materials, scene.transfers);
         let Some(mode_s) = &v.mode else {
             self.err(
                 t.span(),
@@ -173,6 +272,8 @@ impl Resolver<'_> {
             colormap: map,
             materials,
             transfers,
+            scene,
+            volumes: &volumes,
         })?;
         if let (Some(sh), Some(g)) = (mode.shading(), &v.gradient) {
             if sh.gradient == GradientMethod::Analytic
@@ -191,6 +292,7 @@ impl Resolver<'_> {
         Some(RenderPass {
             name,
             mode,
+            volumes,
             step_voxels,
             interpolation,
             window,
@@ -351,7 +453,6 @@ fn string_key<'t>(v: &'t RenderTable, key: &str) -> Option<&'t Option<Spanned<St
         "material" => &v.material,
         "shading" => &v.shading,
         "gradient" => &v.gradient,
-        "transfer" => &v.transfer,
         _ => return None,
     })
 }
@@ -365,6 +466,15 @@ fn bool_key<'t>(v: &'t RenderTable, key: &str) -> Option<&'t Option<Spanned<bool
     })
 }
 
+/// What passes refer to: the scene's materials, transfer functions (resolved in
+/// the first volume's units, and as written) and volumes.
+pub(super) struct SceneParts<'a> {
+    materials: &'a BTreeMap<String, Material>,
+    transfers: &'a BTreeMap<String, Transfer>,
+    transfer_tables: &'a BTreeMap<String, Spanned<TransferTable>>,
+    volumes: &'a [SceneVolume],
+}
+
 /// One pass's keys as its mode reads them ([`mode::Keys`]): each read goes through
 /// the resolver's checks, so messages are the scene's own.
 struct PassKeys<'r, 'a, 't> {
@@ -374,6 +484,9 @@ struct PassKeys<'r, 'a, 't> {
     colormap: transfer::Colormap,
     materials: &'t BTreeMap<String, Material>,
     transfers: &'t BTreeMap<String, Transfer>,
+    scene: &'t SceneParts<'t>,
+    /// The volumes the pass reads (the first is its own).
+    volumes: &'t [usize],
 }
 
 impl PassKeys<'_, '_, '_> {
@@ -401,6 +514,8 @@ impl PassKeys<'_, '_, '_> {
         let at = match (string_key(v, key), bool_key(v, key)) {
             (Some(s), _) => s.as_ref().map(|s| s.span()),
             (_, Some(b)) => b.as_ref().map(|b| b.span()),
+            _ if key == "transfer" => v.transfer.as_ref().map(|s| s.span()),
+            _ if key == "volumes" => v.volumes.as_ref().map(|s| s.span()),
             _ => self.numeric(key).as_ref().map(|s| s.span()),
         };
         at.unwrap_or_else(|| self.table.span())
@@ -433,12 +548,6 @@ impl Keys for PassKeys<'_, '_, '_> {
             .is_some_and(|b| b.as_ref().is_some_and(|b| *b.get_ref()))
     }
 
-    fn text(&self, key: &str) -> Option<&str> {
-        string_key(self.table.get_ref(), key)?
-            .as_ref()
-            .map(|s| s.get_ref().as_str())
-    }
-
     fn colormap(&self) -> transfer::Colormap {
         self.colormap
     }
@@ -448,18 +557,79 @@ impl Keys for PassKeys<'_, '_, '_> {
             .shading(self.table.get_ref(), self.materials, Model::Phong)
     }
 
-    fn transfer(&mut self) -> Option<(String, Transfer)> {
-        let v = self.table.get_ref();
-        let name = v
-            .transfer
+    fn text(&self, key: &str) -> Option<&str> {
+        if key == "transfer" {
+            return match self.table.get_ref().transfer.as_ref().map(|t| t.get_ref()) {
+                Some(TransferChoice::Name(n)) => Some(n.as_str()),
+                _ => None,
+            };
+        }
+        string_key(self.table.get_ref(), key)?
             .as_ref()
-            .map_or("grey".to_string(), |t| t.get_ref().clone());
+            .map(|s| s.get_ref().as_str())
+    }
+
+    fn transfer(&mut self) -> Option<(String, Transfer)> {
+        let mut all = self.transfers()?;
+        Some(all.remove(0))
+    }
+
+    fn transfers(&mut self) -> Option<Vec<(String, Transfer)>> {
+        let v = self.table.get_ref();
         let span = self.span("transfer");
-        let tf = match self.transfers.get(&name) {
-            Some(tf) => tf.clone(),
-            None => self.resolver.preset(&name, self.transfers, span)?,
+        let volumes = self.scene.volumes;
+        // the transfer function's name for each volume the pass reads
+        let names: Vec<(String, Range<usize>)> = match v.transfer.as_ref().map(|t| t.get_ref()) {
+            None if self.volumes.len() == 1 => vec![("grey".to_string(), span.clone())],
+            Some(TransferChoice::Name(n)) if self.volumes.len() == 1 => vec![(n.clone(), span.clone())],
+            None | Some(TransferChoice::Name(_)) => {
+                let list: Vec<String> = self
+                    .volumes
+                    .iter()
+                    .map(|&k| format!("{} = \"...\"", volumes[k].name))
+                    .collect();
+                self.resolver.err(span, format!(
+                    "a composite of several volumes takes one transfer function per volume: transfer = {{ {} }}",
+                    list.join(", ")
+                ));
+                return None;
+            }
+            Some(TransferChoice::PerVolume(table)) => {
+                let mut ok = true;
+                for key in table.keys() {
+                    if !self.volumes.iter().any(|&k| volumes[k].name == *key) {
+                        let read: Vec<&str> = self.volumes.iter().map(|&k| volumes[k].name.as_str()).collect();
+                        self.resolver.err(span.clone(), format!(
+                            "transfer: `{key}` is not a volume this pass reads (it reads {}; list the volumes a composite blends in `volumes`)",
+                            quoted_list(read.iter().copied())
+                        ));
+                        ok = false;
+                    }
+                }
+                let mut names = Vec::new();
+                for &k in self.volumes {
+                    match table.get(&volumes[k].name) {
+                        Some(n) => names.push((n.clone(), span.clone())),
+                        None => {
+                            self.resolver.err(span.clone(), format!(
+                                "transfer has no transfer function for volume `{}`: give one for each volume the pass reads (transfer = {{ {} = \"...\", ... }})",
+                                volumes[k].name, volumes[k].name
+                            ));
+                            ok = false;
+                        }
+                    }
+                }
+                if !ok {
+                    return None;
+                }
+                names
+            }
         };
-        Some((name, tf))
+        let mut out = Vec::new();
+        for (&k, (name, at)) in self.volumes.iter().zip(names) {
+            out.push((name.clone(), self.transfer_for(k, &name, at)?));
+        }
+        Some(out)
     }
 
     fn error(&mut self, key: &str, message: String) {
@@ -469,5 +639,39 @@ impl Keys for PassKeys<'_, '_, '_> {
 
     fn warn(&mut self, message: String) {
         self.resolver.warnings.push(message);
+    }
+}
+
+impl PassKeys<'_, '_, '_> {
+    /// The transfer function `name` for volume `k`: as resolved in the first
+    /// volume's units, or, for a volume with units of its own, resolved again in
+    /// those (its knots, or a preset's, placed on that volume's window).
+    fn transfer_for(&mut self, k: usize, name: &str, span: Range<usize>) -> Option<Transfer> {
+        let r = &mut *self.resolver;
+        let own = r.contexts.get(k).copied();
+        let first = r.contexts.first().copied();
+        if own == first {
+            return match self.transfers.get(name) {
+                Some(tf) => Some(tf.clone()),
+                None => r.preset(name, self.transfers, span),
+            };
+        }
+        let saved = (r.units, r.window);
+        if let Some((units, window)) = own {
+            r.units = units;
+            r.window = window;
+        }
+        let before = r.diags.len();
+        let tf = match self.scene.transfer_tables.get(name) {
+            Some(table) => r.transfer(name, table),
+            None if self.transfers.contains_key(name) => self.transfers.get(name).cloned(),
+            None => r.preset(name, self.transfers, span),
+        };
+        let volume = &self.scene.volumes[k].name;
+        for d in &mut r.diags[before..] {
+            d.message = format!("for volume `{volume}`: {}", d.message);
+        }
+        (r.units, r.window) = saved;
+        tf
     }
 }

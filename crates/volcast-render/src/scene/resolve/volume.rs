@@ -8,8 +8,9 @@ use toml::Spanned;
 
 use super::Resolver;
 use crate::scene::diag::{quoted_list, suggest};
-use crate::scene::schema::{Sp, VolumeTable};
-use crate::scene::{Units, VolumeSpec};
+use crate::number::shown;
+use crate::scene::schema::{MatrixValue, Sp, VolumeTable, VolumeTables};
+use crate::scene::{SceneVolume, Transform, Units, VolumeSpec};
 use crate::volume::dicom::DicomSpec;
 use crate::volume::nifti::NiftiSpec;
 use crate::volume::raw::RawSpec;
@@ -41,8 +42,91 @@ impl From<FileFormat> for Format {
 }
 
 impl Resolver<'_> {
-    pub(super) fn volume(&mut self, t: &Spanned<VolumeTable>) -> VolumeSpec {
-        let v = t.get_ref();
+    /// The scene's volumes: `[volume]`, or each `[[volume]]` table with its name
+    /// and transform. Leaves the first volume's units and window as the scene's.
+    pub(super) fn volumes(&mut self, t: &Spanned<VolumeTables>) -> Vec<SceneVolume> {
+        let tables: Vec<(Range<usize>, &VolumeTable)> = match t.get_ref() {
+            VolumeTables::One(v) => vec![(t.span(), v)],
+            VolumeTables::Many(list) => list.iter().map(|v| (v.span(), v.get_ref())).collect(),
+        };
+        let many = matches!(t.get_ref(), VolumeTables::Many(_));
+        if tables.is_empty() {
+            self.err(t.span(), "the scene has no volume: give a [volume] table, or [[volume]] tables each with a `name`");
+        }
+        let mut volumes: Vec<SceneVolume> = Vec::new();
+        let mut contexts = Vec::new();
+        for (span, v) in tables {
+            let name = match &v.name {
+                Some(n) if valid_volume_name(n.get_ref()) => n.get_ref().clone(),
+                Some(n) => {
+                    self.err(n.span(), format!("name = \"{}\": expected a volume name of letters, digits, '-' and '_'", n.get_ref()));
+                    n.get_ref().clone()
+                }
+                None if many => {
+                    self.err(span.clone(), "[[volume]] needs `name`: passes name the volume they read (`volume = \"NAME\"`)");
+                    format!("volume{}", volumes.len() + 1)
+                }
+                None => "volume".to_string(),
+            };
+            if let (Some(other), Some(n)) = (volumes.iter().find(|o| o.name == name), &v.name) {
+                let _ = other;
+                self.err(n.span(), format!("two volumes are named `{name}`: passes could not tell them apart; give each [[volume]] its own `name`"));
+            }
+            let transform = v.transform.as_ref().and_then(|m| self.transform(&name, m));
+            let spec = self.volume(span, v);
+            contexts.push((self.units, self.window));
+            volumes.push(SceneVolume {
+                name,
+                spec,
+                transform,
+            });
+        }
+        if let Some(&(units, window)) = contexts.first() {
+            self.units = units;
+            self.window = window;
+        }
+        self.contexts = contexts;
+        volumes
+    }
+
+    /// `transform`: a 4 x 4 row-major affine matrix (four rows of four numbers, or
+    /// sixteen), finite, with an invertible linear part and a last row of
+    /// `[0, 0, 0, 1]`.
+    fn transform(&mut self, volume: &str, m: &Spanned<MatrixValue>) -> Option<Transform> {
+        let numbers: Option<Vec<f64>> = match m.get_ref() {
+            MatrixValue::Rows(rows) if rows.len() == 4 && rows.iter().all(|r| r.len() == 4) => {
+                Some(rows.iter().flatten().copied().collect())
+            }
+            MatrixValue::Flat(v) if v.len() == 16 => Some(v.clone()),
+            _ => None,
+        };
+        let at = format!("volume `{volume}`: transform");
+        let Some(a) = numbers else {
+            self.err(m.span(), format!("{at}: expected a 4 x 4 row-major matrix, four rows of four numbers ([[1, 0, 0, tx], [0, 1, 0, ty], [0, 0, 1, tz], [0, 0, 0, 1]]) or sixteen numbers"));
+            return None;
+        };
+        if !a.iter().all(|x| x.is_finite()) {
+            self.err(m.span(), format!("{at}: every entry must be a finite number (it has NaN or infinity)"));
+            return None;
+        }
+        if a[12..] != [0.0, 0.0, 0.0, 1.0] {
+            self.err(m.span(), format!("{at}: its last row is [{}, {}, {}, {}], but a registration is affine: the last row must be [0, 0, 0, 1] (projective maps are not supported)", shown(a[12]), shown(a[13]), shown(a[14]), shown(a[15])));
+            return None;
+        }
+        let matrix = glam::DMat3::from_cols_array(&[a[0], a[4], a[8], a[1], a[5], a[9], a[2], a[6], a[10]]);
+        let placed = Transform {
+            matrix,
+            translation: glam::DVec3::new(a[3], a[7], a[11]),
+        };
+        // the same test as the file's own axes
+        if !placed.place(&crate::volume::Geometry::default()).is_valid() {
+            self.err(m.span(), format!("{at}: its 3 x 3 part is not invertible (determinant {}): a registration must keep the volume three-dimensional", shown(matrix.determinant())));
+            return None;
+        }
+        Some(placed)
+    }
+
+    pub(super) fn volume(&mut self, span: Range<usize>, v: &VolumeTable) -> VolumeSpec {
         let window = self.window("window", &v.window);
         let raw_keys = [
             ("sizes", v.sizes.as_ref().map(|s| s.span())),
@@ -59,7 +143,7 @@ impl Resolver<'_> {
                 placeholder
             }
             (None, None) => {
-                self.err(t.span(), "[volume] needs `path` (a .nrrd/.nhdr, .nii/.nii.gz, .mha/.mhd, .tif/.tiff or raw file) or `synthetic` (gaussian, ball, sphere-distance, marschner-lobb, blobs)");
+                self.err(span.clone(), "[volume] needs `path` (a .nrrd/.nhdr, .nii/.nii.gz, .mha/.mhd, .tif/.tiff or raw file) or `synthetic` (gaussian, ball, sphere-distance, marschner-lobb, blobs)");
                 placeholder
             }
             (None, Some(s)) => {
@@ -116,7 +200,7 @@ impl Resolver<'_> {
             // a bad window is reported already
             (true, Some(_), None) => Units::Normalised,
             (true, None, _) => {
-                let span = v.units.as_ref().map_or(t.span(), |u| u.span());
+                let span = v.units.as_ref().map_or(span.clone(), |u| u.span());
                 self.err(
                     span,
                     "units = \"data\" needs `window = [lo, hi]` in [volume]: the data values that \
@@ -471,4 +555,10 @@ impl Resolver<'_> {
             offset,
         }))
     }
+}
+
+/// A volume name: letters, digits, '-' and '_' (what a pass's `volume` key and a
+/// composite's transfer table name it by).
+fn valid_volume_name(s: &str) -> bool {
+    !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_'))
 }
