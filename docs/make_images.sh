@@ -8,7 +8,7 @@ VOLCAST=${1:-target/release/volcast}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 render() { "$VOLCAST" render --quiet --frames 0 --size 256x256 --out "$tmp/$1" "scenes/$1.toml"; }
-for s in xray_engine mip_head head_modes minip_ventricles depth_engine golden_engine golden_head golden_skull composite_engine_bone transfer_2d marschner_lobb colormap_engine preset_mr_head; do
+for s in xray_engine mip_head head_modes minip_ventricles depth_engine golden_engine golden_head golden_skull composite_engine_bone transfer_2d marschner_lobb colormap_engine preset_mr_head activation_overlay; do
   render "$s"
 done
 cp "$tmp/xray_engine/xray_0000.png"                docs/images/xray.png
@@ -29,6 +29,7 @@ cp "$tmp/colormap_engine/mip_hot_0000.png"         docs/images/colormap_hot.png
 cp "$tmp/colormap_engine/xray_bone_0000.png"       docs/images/colormap_bone.png
 cp "$tmp/colormap_engine/depth_viridis_0000.png"   docs/images/colormap_viridis.png
 cp "$tmp/preset_mr_head/mr_default_0000.png"       docs/images/preset_mr_default.png
+cp "$tmp/activation_overlay/overlay_0000.png"      docs/images/activation_overlay.png
 # a NIfTI input (README "Input formats")
 "$VOLCAST" render --quiet --frames 0 --out "$tmp/ct_head_nifti" scenes/ct_head_nifti.toml
 cp "$tmp/ct_head_nifti/skin_0000.png"              docs/images/nifti_skin.png

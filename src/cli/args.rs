@@ -62,6 +62,10 @@ pub struct SpeedArgs {
     /// 1 with --quick); the median is reported.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub repeats: Option<u16>,
+    /// Only the cases whose mode contains this text (e.g. `composite`: the
+    /// composites of one and of several volumes).
+    #[arg(long, value_name = "TEXT")]
+    pub only: Option<String>,
 }
 
 #[derive(Debug, Args)]

@@ -19,6 +19,7 @@ pub fn accuracy(a: AccuracyArgs) -> anyhow::Result<ExitCode> {
     if let Some(t) = a.threads {
         command += &format!(" --threads {t}");
     }
+
     bench::check_writable(&a.out, &["images"])?;
     let report = with_threads(a.threads.map(usize::from), || {
         let mut last = usize::MAX;
@@ -50,6 +51,10 @@ pub fn speed(a: SpeedArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(t) = a.threads {
         command += &format!(" --threads {t}");
+    }
+    if let Some(only) = &a.only {
+        opts.only = Some(only.clone());
+        command += &format!(" --only {only}");
     }
     if let Some(dir) = &a.out {
         bench::check_writable(dir, &[])?;

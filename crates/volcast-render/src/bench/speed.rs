@@ -18,7 +18,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::{machine, sig, today, write_file, BenchError};
-use crate::pipeline::render_films_of;
+use crate::pipeline::render_films_of_all;
 use crate::plan::RunOptions;
 use crate::volume::{Limits, Volume};
 
@@ -37,6 +37,8 @@ pub struct SpeedOptions {
     pub threads: Vec<usize>,
     /// The real volume to include (the shipped engine CT), if found.
     pub real_volume: Option<PathBuf>,
+    /// Only the cases whose mode contains this text.
+    pub only: Option<String>,
 }
 
 impl SpeedOptions {
@@ -54,6 +56,7 @@ impl SpeedOptions {
             repeats: if quick { 1 } else { 5 },
             threads: counts,
             real_volume: find_real_volume(),
+            only: None,
         }
     }
 }
@@ -135,6 +138,52 @@ fn scene_text(volume: &str, mode: &str, size: usize, frames: usize) -> String {
     )
 }
 
+/// The label of a case of several volumes.
+fn blend_label(what: &str) -> String {
+    match what {
+        "second" => "composite (gaussian alone)",
+        "blend" => "composite of 2 volumes",
+        _ => "composite of 2, overlapping",
+    }
+    .into()
+}
+
+/// A composite case of several volumes on the synthetic field `table` (the
+/// `[volume]` body of the blobs): `second`, a Gaussian of the same size alone;
+/// `blend`, the blobs and the Gaussian blended; `overlap`, the blobs blended
+/// with themselves through an opaque-ish transfer function (every sample of both
+/// contributes: the worst case).
+fn blend_text(table: &str, what: &str, opts: &SpeedOptions) -> String {
+    let gaussian = table.replace("synthetic = \"blobs\"", "synthetic = \"gaussian\"\nsigma = 0.3");
+    let (volumes, pass) = match what {
+        "second" => (
+            format!("[[volume]]\nname = \"g\"\n{gaussian}\n"),
+            "transfer = \"hot\"\n".to_string(),
+        ),
+        "blend" => (
+            format!("[[volume]]\nname = \"b\"\n{table}\n[[volume]]\nname = \"g\"\n{gaussian}\n"),
+            "volumes = [\"b\", \"g\"]\ntransfer = { b = \"ramp\", g = \"hot\" }\n".to_string(),
+        ),
+        _ => (
+            format!("[[volume]]\nname = \"b\"\n{table}\n[[volume]]\nname = \"c\"\n{table}\n"),
+            "volumes = [\"b\", \"c\"]\ntransfer = { b = \"dense\", c = \"dense\" }\n".to_string(),
+        ),
+    };
+    format!(
+        "{volumes}\
+         [camera]\nprojection = \"orthographic\"\nazimuth = 20\nelevation = 15\n\
+         [orbit]\nframes = {}\n\
+         [image]\nsize = [{s}, {s}]\nformat = \"nrrd\"\n\
+         [transfer.ramp]\ncolor = [[0.0, [0.0, 0.0, 0.0]], [1.0, [1.0, 1.0, 1.0]]]\n\
+         alpha = [[0.0, 0.0], [0.1, 0.0], [1.0, 0.2]]\n\
+         [transfer.hot]\ncolor = [[0.0, [1.0, 0.5, 0.0]]]\nalpha = [[0.0, 0.0], [0.6, 0.0], [1.0, 0.3]]\n\
+         [transfer.dense]\ncolor = [[0.0, [0.5, 0.5, 1.0]]]\nalpha = [[0.0, 0.02], [1.0, 0.3]]\n\
+         [[render]]\nmode = \"composite\"\n{pass}step = 0.5\n",
+        opts.frames,
+        s = opts.size
+    )
+}
+
 /// Runs the speed bench; `progress(line)` reports each case as it ends.
 pub fn speed(
     opts: &SpeedOptions,
@@ -168,8 +217,38 @@ pub fn speed(
             Path::new("speed.toml"),
         )?;
         let volume = first.volume().source.load(&Limits::default())?;
-        for mode in crate::mode::names() {
-            let cases = case(opts, name, table, mode, &volume)?;
+        let mut cases: Vec<(String, String, Vec<&Volume>)> = crate::mode::names()
+            .map(|mode| {
+                let text = scene_text(table, mode, opts.size, opts.frames);
+                (mode.to_string(), text, vec![&volume])
+            })
+            .collect();
+        // several volumes, on the synthetic field: a second volume alone, the two
+        // blended, and the field blended with itself (fully overlapping)
+        let second = match name.strip_prefix("blobs ") {
+            Some(_) => Some(
+                crate::scene::parse(&blend_text(table, "second", opts), Path::new("speed.toml"))?
+                    .volumes[0]
+                    .spec
+                    .source
+                    .load(&Limits::default())?,
+            ),
+            None => None,
+        };
+        if let Some(second) = &second {
+            for what in ["second", "blend", "overlap"] {
+                let volumes = match what {
+                    "second" => vec![second],
+                    "blend" => vec![&volume, second],
+                    _ => vec![&volume, &volume],
+                };
+                cases.push((blend_label(what), blend_text(table, what, opts), volumes));
+            }
+        }
+        cases.retain(|(mode, _, _)| opts.only.as_ref().is_none_or(|o| mode.contains(o.as_str())));
+        for (mode, text, vols) in &cases {
+            let mode = mode.as_str();
+            let cases = case(opts, name, mode, text, vols)?;
             let base = cases[0].ms_per_frame;
             for row in cases {
                 let row = SpeedRow {
@@ -205,14 +284,11 @@ pub fn speed(
 fn case(
     opts: &SpeedOptions,
     name: &str,
-    table: &str,
     mode: &str,
-    volume: &Volume,
+    text: &str,
+    volumes: &[&Volume],
 ) -> Result<Vec<SpeedRow>, BenchError> {
-    let scene = crate::scene::parse(
-        &scene_text(table, mode, opts.size, opts.frames),
-        Path::new("speed.toml"),
-    )?;
+    let scene = crate::scene::parse(text, Path::new("speed.toml"))?;
     let pools = opts
         .threads
         .iter()
@@ -230,7 +306,7 @@ fn case(
             ..RunOptions::default()
         };
         let t0 = Instant::now();
-        let (_, summary) = pools[t].install(|| render_films_of(&scene, volume, &opts))?;
+        let (_, summary) = pools[t].install(|| render_films_of_all(&scene, volumes, &opts))?;
         Ok((
             t0.elapsed().as_secs_f64(),
             summary.samples,
@@ -387,6 +463,17 @@ impl SpeedReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_blend_scene_resolves() {
+        let opts = SpeedOptions::new(true, Some(1));
+        let table = "synthetic = \"blobs\"\nsizes = [8, 8, 8]\ntype = \"uint8\"";
+        for what in ["second", "blend", "overlap"] {
+            let s = crate::scene::parse(&blend_text(table, what, &opts), Path::new("s.toml"))
+                .unwrap_or_else(|e| panic!("{what}: {e}"));
+            assert_eq!(s.passes[0].volumes.len(), if what == "second" { 1 } else { 2 });
+        }
+    }
 
     #[test]
     fn every_mode_scene_resolves() {

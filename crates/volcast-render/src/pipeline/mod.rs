@@ -468,6 +468,26 @@ pub fn render_films_of(
     Ok((views, summary))
 }
 
+/// [`render_films_of`] of a scene of any number of volumes, already loaded
+/// (`volumes` in the scene's order, each the scene's own).
+pub fn render_films_of_all(
+    scene: &Scene,
+    volumes: &[&Volume],
+    opts: &RunOptions,
+) -> Result<(Vec<RenderedView>, Summary), Error> {
+    let start = Instant::now();
+    let headers: Vec<_> = volumes.iter().map(|v| v.header.clone()).collect();
+    let plan = Plan::build(scene, &headers, opts)?;
+    let volumes: Vec<Option<&Volume>> = volumes
+        .iter()
+        .zip(&plan.volumes)
+        .map(|(v, p)| p.is_read().then_some(*v))
+        .collect();
+    let (views, mut summary) = films_of_plan(&plan, &volumes)?;
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok((views, summary))
+}
+
 /// The films of every (pass, frame) of `plan`, rendered from `volumes`.
 fn films_of_plan<V: std::borrow::Borrow<Volume>>(
     plan: &Plan,

@@ -30,10 +30,15 @@ use crate::render::skip::MacroGrid;
 use crate::render::{IndexFrame, View};
 use crate::sample::Field;
 
-/// Midpoints of a ray's march handed to each volume's walk at a time: the
-/// volumes' contributions to them are blended before the next chunk is walked,
-/// so a ray that turns opaque stops within a chunk.
-const CHUNK: usize = 128;
+/// Midpoints of a ray's march handed to each volume's walk at a time, at most:
+/// the volumes' contributions to them are blended before the next chunk is
+/// walked, so a ray that turns opaque stops within a chunk. The first chunk is
+/// shorter, and each next one twice as long, so that a ray that turns opaque
+/// soon wastes few samples and a long one walks its cells in few chunks.
+const CHUNK: usize = 512;
+
+/// The first chunk of a ray.
+const FIRST_CHUNK: usize = 64;
 
 /// One volume of a blend, ready to sample.
 pub(super) struct Layer<'a> {
@@ -81,6 +86,10 @@ struct Scratch {
     terms: Vec<Vec<Term>>,
     cursors: Vec<usize>,
     at: Vec<(Vec4, f32)>,
+    /// The volumes a ray meets: each one's index and its midpoints' range.
+    parts: Vec<(usize, usize, usize)>,
+    /// The volumes with terms in the current chunk.
+    busy: Vec<usize>,
 }
 
 impl Blend<'_> {
@@ -91,6 +100,8 @@ impl Blend<'_> {
             terms: (0..n).map(|_| Vec::with_capacity(CHUNK)).collect(),
             cursors: vec![0; n],
             at: Vec::with_capacity(n),
+            parts: Vec::with_capacity(n),
+            busy: Vec::with_capacity(n),
         }
     }
 
@@ -148,7 +159,8 @@ impl Blend<'_> {
         let to_eye = (-ray.dir).as_vec3();
         let mut counts = Counts::default();
         // each volume's samples: those of the march inside its box (and the cut)
-        let mut parts: Vec<(usize, usize, usize)> = Vec::with_capacity(self.layers.len());
+        let parts = &mut s.parts;
+        parts.clear();
         for (k, (l, hit)) in self.layers.iter().zip(s.hits.iter_mut()).enumerate() {
             let Some(h) = hit else { continue };
             let (a, b) = (h.t0.max(t_enter), h.t1.min(t_exit));
@@ -173,10 +185,11 @@ impl Blend<'_> {
             counts.nominal += (end - first) as u64;
         }
         let mut acc = FrontToBack::new(self.early_stop);
-        let mut from = 0;
+        let (mut from, mut chunk) = (0, FIRST_CHUNK);
         'ray: while from < n {
-            let to = (from + CHUNK).min(n);
-            for &(k, first, end) in &parts {
+            let to = (from + chunk).min(n);
+            chunk = (2 * chunk).min(CHUNK);
+            for &(k, first, end) in s.parts.iter() {
                 let terms = &mut s.terms[k];
                 terms.clear();
                 s.cursors[k] = 0;
@@ -206,24 +219,43 @@ impl Blend<'_> {
                 };
                 counts.taken += drive(&part, &field, &ray, skip, &mut collect);
             }
-            // the midpoints of this chunk, in order, each with the volumes' terms
-            for m in from..to {
-                s.at.clear();
-                for &(k, _, _) in &parts {
-                    let c = s.cursors[k];
-                    if let Some(&(at, colour, a)) = s.terms[k].get(c) {
-                        if at as usize == m {
-                            s.at.push((colour, a));
-                            s.cursors[k] = c + 1;
-                        }
+            // the chunk's terms in order of their midpoints, those of one midpoint
+            // blended
+            s.busy.clear();
+            for &(k, _, _) in s.parts.iter() {
+                if !s.terms[k].is_empty() {
+                    s.busy.push(k);
+                }
+            }
+            let busy = &s.busy;
+            if let [k] = busy.as_slice() {
+                // one volume: its terms as they are
+                for &(_, c, a) in &s.terms[*k] {
+                    if acc.add(c, a).is_break() {
+                        break 'ray;
                     }
                 }
-                if s.at.is_empty() {
-                    continue;
-                }
-                let (c, a) = blended(&mut s.at);
-                if acc.add(c, a).is_break() {
-                    break 'ray;
+            } else {
+                loop {
+                    let next = busy
+                        .iter()
+                        .filter_map(|&k| s.terms[k].get(s.cursors[k]).map(|t| t.0))
+                        .min();
+                    let Some(m) = next else { break };
+                    s.at.clear();
+                    for &k in busy.iter() {
+                        let c = s.cursors[k];
+                        if let Some(&(at, colour, a)) = s.terms[k].get(c) {
+                            if at == m {
+                                s.at.push((colour, a));
+                                s.cursors[k] = c + 1;
+                            }
+                        }
+                    }
+                    let (c, a) = blended(&mut s.at);
+                    if acc.add(c, a).is_break() {
+                        break 'ray;
+                    }
                 }
             }
             from = to;
@@ -313,6 +345,21 @@ impl<F: Field> Consumer for Collect<'_, F> {
     }
 
     fn skip(&mut self, _i: usize, _j: usize) -> ControlFlow<()> {
+        ControlFlow::Continue(())
+    }
+
+    #[inline(always)]
+    fn take_batch(&mut self, from: usize, ts: &[f64], values: &[f32]) -> ControlFlow<usize> {
+        self.composite.terms_of_batch(
+            self.field,
+            self.ray,
+            self.march,
+            self.offset + from,
+            ts,
+            values,
+            self.to_eye,
+            self.terms,
+        );
         ControlFlow::Continue(())
     }
 

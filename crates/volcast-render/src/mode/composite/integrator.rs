@@ -498,6 +498,69 @@ impl Composite {
         }
     }
 
+    /// [`Composite::midpoint_of`] of a batch of midpoints (`from` the index of the
+    /// first in `march`, at `ts`, of `values`), each that is not transparent
+    /// appended to `out` as (index, colour, opacity). A batch of whole steps
+    /// through a 1D table, unshaded, takes the lookups of the one-volume path
+    /// ([`Midpoint::take_batch`]: the same bits), eight at a time where the
+    /// machine has AVX2.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(super) fn terms_of_batch<F: Field>(
+        &self,
+        field: &F,
+        ray: &PixelRay,
+        march: &March,
+        from: usize,
+        ts: &[f64],
+        values: &[f32],
+        to_eye: Vec3,
+        out: &mut Vec<(u32, Vec4, f32)>,
+    ) {
+        let n = values.len();
+        let table = match &self.tables {
+            Tables::OneD(t)
+                if self.shader.is_none()
+                    && (1..=BATCH).contains(&n)
+                    && march.is_full_step(from + 1)
+                    && march.is_full_step(from + n) =>
+            {
+                &t.full_step
+            }
+            _ => {
+                for (k, (&t, &v)) in ts.iter().zip(values).enumerate() {
+                    if let Some((c, a)) = self.midpoint_of(field, ray, march, from + k, t, v, to_eye) {
+                        out.push(((from + k) as u32, c, a));
+                    }
+                }
+                return;
+            }
+        };
+        if self.eight_lanes {
+            let mut found = Unclear::new();
+            found.find(values, self.clear_unit_up_to, (table.len() - 1) as u32);
+            for j in 0..found.len() {
+                let (k, i, t) = found.get(j);
+                // SAFETY: i is at most the table's last index less one (`Unclear::find`)
+                let rgba = unsafe { table.lerp_entries(i, t) };
+                if rgba[3] > 0.0 {
+                    out.push(((from + k) as u32, Vec4::from_array(rgba), rgba[3]));
+                }
+            }
+            return;
+        }
+        for (k, &v) in values.iter().enumerate() {
+            let Some(x) = self.position_unless_clear(v) else {
+                continue;
+            };
+            // SAFETY: x is in [0, value_last] (`Composite::position_unless_clear`)
+            let rgba = unsafe { table.lookup_within(x) };
+            if rgba[3] > 0.0 {
+                out.push(((from + k) as u32, Vec4::from_array(rgba), rgba[3]));
+            }
+        }
+    }
+
     /// Whether the transfer function is transparent over macrocell `cell`, and the
     /// mask of its octants over which it is (for `blend.rs`).
     #[inline(always)]
