@@ -69,7 +69,10 @@ fn a_transparent_second_volume_leaves_the_image_unchanged() {
         );
         let (a, b) = (render(&one), render(&two));
         assert_eq!(bits(&a), bits(&b), "{shading}");
-        assert!(a[0].film.data.chunks(4).any(|p| p[3] > 0.2), "the anatomy shows");
+        assert!(
+            a[0].film.data.chunks(4).any(|p| p[3] > 0.2),
+            "the anatomy shows"
+        );
     }
 }
 
@@ -82,7 +85,8 @@ fn the_same_medium_twice_is_one_of_composed_opacity() {
     let tf = |name: &str, alpha: f64| {
         format!("[transfer.{name}]\ncolor = [[0.0, [1.0, 0.5, 0.25]]]\nalpha = [[0.0, {alpha}], [1.0, {alpha}]]\n")
     };
-    let second = "[[volume]]\nname = \"copy\"\nsynthetic = \"ball\"\nradius = 0.7\nsizes = [21, 21, 21]\n";
+    let second =
+        "[[volume]]\nname = \"copy\"\nsynthetic = \"ball\"\nradius = 0.7\nsizes = [21, 21, 21]\n";
     let twice = format!(
         "{ANATOMY}{second}{VIEW}{}[[render]]\nmode = \"composite\"\nvolumes = [\"anatomy\", \"copy\"]\ntransfer = {{ anatomy = \"fog\", copy = \"fog\" }}\nstep = 0.6\nearly_stop = 1.0\n",
         tf("fog", a)
@@ -97,7 +101,10 @@ fn the_same_medium_twice_is_one_of_composed_opacity() {
     // and the medium is there: the centre pixel is far from empty
     let c = x[0].film.pixel(20, 16);
     assert!(c[3] > 0.5, "{c:?}");
-    assert!((c[0] - 1.0).abs() < 1e-6 && (c[1] - 0.5).abs() < 1e-6, "{c:?}");
+    assert!(
+        (c[0] - 1.0).abs() < 1e-6 && (c[1] - 0.5).abs() < 1e-6,
+        "{c:?}"
+    );
 }
 
 /// Blending does not depend on the order the volumes are listed in: the same
@@ -129,7 +136,10 @@ fn write_ball(path: &Path, n: usize, origin: [f64; 3], axes: [[f64; 3]; 3]) {
     for k in 0..n {
         for j in 0..n {
             for i in 0..n {
-                let d = ((i as f64 - c).powi(2) + (j as f64 - c).powi(2) + (k as f64 - 0.6 * c).powi(2)).sqrt();
+                let d = ((i as f64 - c).powi(2)
+                    + (j as f64 - c).powi(2)
+                    + (k as f64 - 0.6 * c).powi(2))
+                .sqrt();
                 let v = (1.0 - d / (0.8 * c)).clamp(0.0, 1.0) as f32;
                 data.extend_from_slice(&v.to_le_bytes());
             }
@@ -172,14 +182,23 @@ fn a_transform_places_a_volume_as_its_file_would() {
         format!("[volume]\npath = \"{dir}/{file}\"\n{transform}{view}{mip}")
     };
     let cases = [
-        ("moved.nrrd", "transform = [[1, 0, 0, 5], [0, 1, 0, -3], [0, 0, 1, 2], [0, 0, 0, 1]]\n"),
-        ("turned.nrrd", "transform = [0, -2, 0, 1, 2, 0, 0, 2, 0, 0, 2, 3, 0, 0, 0, 1]\n"),
+        (
+            "moved.nrrd",
+            "transform = [[1, 0, 0, 5], [0, 1, 0, -3], [0, 0, 1, 2], [0, 0, 0, 1]]\n",
+        ),
+        (
+            "turned.nrrd",
+            "transform = [0, -2, 0, 1, 2, 0, 0, 2, 0, 0, 2, 3, 0, 0, 0, 1]\n",
+        ),
     ];
     for (file, transform) in cases {
         let by_file = render(&one(file, ""));
         let by_transform = render(&one("at_zero.nrrd", transform));
         assert_eq!(bits(&by_file), bits(&by_transform), "{file}");
-        assert!(by_file[0].film.data.iter().any(|&x| x > 0.5), "{file}: the ball is in view");
+        assert!(
+            by_file[0].film.data.iter().any(|&x| x > 0.5),
+            "{file}: the ball is in view"
+        );
         // and in a blend, over a second volume
         let blend = |file: &str, transform: &str| {
             format!(
@@ -187,7 +206,10 @@ fn a_transform_places_a_volume_as_its_file_would() {
                  [[render]]\nmode = \"composite\"\nvolumes = [\"base\", \"b\"]\ntransfer = {{ base = \"ramp\", b = \"hot2\" }}\nstep = 0.5\n"
             )
         };
-        let (x, y) = (render(&blend(file, "")), render(&blend("at_zero.nrrd", transform)));
+        let (x, y) = (
+            render(&blend(file, "")),
+            render(&blend("at_zero.nrrd", transform)),
+        );
         assert_eq!(bits(&x), bits(&y), "{file} in a blend");
     }
 }
@@ -251,7 +273,10 @@ fn check_lists_the_volumes_and_resume_works() {
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(text.contains("volumes  2"), "{text}");
-    assert!(text.contains("anatomy") && text.contains("read by `both`"), "{text}");
+    assert!(
+        text.contains("anatomy") && text.contains("read by `both`"),
+        "{text}"
+    );
     assert!(text.contains("read by `both`, `blob_mip`"), "{text}");
     assert!(text.contains("box x -0.3000..0.7000"), "{text}");
     assert!(text.contains("moved by its transform"), "{text}");
@@ -278,14 +303,19 @@ fn check_lists_the_volumes_and_resume_works() {
     );
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    assert!(err.contains("0 views rendered, 4 images already complete"), "{err}");
+    assert!(
+        err.contains("0 views rendered, 4 images already complete"),
+        "{err}"
+    );
 }
 
 /// Scenes of several volumes that cannot be rendered are refused, each error
 /// located and naming the volume, and nothing is written.
 #[test]
 fn bad_volume_references_are_located_errors() {
-    let two = format!("{ANATOMY}[[volume]]\nname = \"blob\"\nsynthetic = \"ball\"\nsizes = [9, 9, 9]\n{TFS}");
+    let two = format!(
+        "{ANATOMY}[[volume]]\nname = \"blob\"\nsynthetic = \"ball\"\nsizes = [9, 9, 9]\n{TFS}"
+    );
     let cases: Vec<(String, &str)> = vec![
         (
             format!("{two}[[render]]\nmode = \"mip\"\nvolume = \"blobb\"\n"),
@@ -349,6 +379,9 @@ fn bad_volume_references_are_located_errors() {
         assert!(err.contains(want), "{text}\nwant: {want}\ngot: {err}");
         // located: the message points at a line of the scene
         assert!(err.contains("s.toml:"), "{err}");
-        assert!(!tmp.path().join("out").exists(), "{text}: nothing is written");
+        assert!(
+            !tmp.path().join("out").exists(),
+            "{text}: nothing is written"
+        );
     }
 }

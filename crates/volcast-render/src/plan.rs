@@ -227,7 +227,12 @@ impl Plan {
                 .geometry
                 .index_from_world_matrix()
                 .expect("checked by is_valid in check");
-            let frame = IndexFrame::new(header.sizes, v.spec.crop, &header.geometry, index_from_world);
+            let frame = IndexFrame::new(
+                header.sizes,
+                v.spec.crop,
+                &header.geometry,
+                index_from_world,
+            );
             volumes.push(PlannedVolume {
                 name: v.name.clone(),
                 spec: v.spec.clone(),
@@ -393,7 +398,10 @@ impl Plan {
             }
             if pre.small > 0 {
                 items.push((
-                    of("macrocell grids and their footprints, transfer-function and lookup tables".into()),
+                    of(
+                        "macrocell grids and their footprints, transfer-function and lookup tables"
+                            .into(),
+                    ),
                     pre.small,
                 ));
             }
@@ -743,11 +751,17 @@ impl Plan {
             let tf_names: Vec<String> = transfers
                 .get("transfers")
                 .and_then(|t| t.as_array())
-                .map(|a| a.iter().filter_map(|x| x.as_str().map(String::from)).collect())
+                .map(|a| {
+                    a.iter()
+                        .filter_map(|x| x.as_str().map(String::from))
+                        .collect()
+                })
                 .unwrap_or_default();
             for (i, (k, part)) in rp.parts().iter().enumerate() {
                 let v = &self.volumes[*k];
-                let tf = tf_names.get(i).map_or(String::new(), |n| format!(" through `{n}`"));
+                let tf = tf_names
+                    .get(i)
+                    .map_or(String::new(), |n| format!(" through `{n}`"));
                 let what = part.describe(v.header.sizes).join("; ");
                 needs.push(format!("volume `{}`{tf}: {what}", v.name));
             }
@@ -912,10 +926,16 @@ impl Plan {
             let [nx, ny, nz] = header.sizes;
             let corners = header.geometry.box_corners(v.frame.lo, v.frame.hi);
             let lo = corners.iter().fold(glam::DVec3::INFINITY, |a, &c| a.min(c));
-            let hi = corners.iter().fold(glam::DVec3::NEG_INFINITY, |a, &c| a.max(c));
+            let hi = corners
+                .iter()
+                .fold(glam::DVec3::NEG_INFINITY, |a, &c| a.max(c));
             let memory = match &v.storage {
-                crate::volume::Storage::Read { bytes, .. } => format!("{} read into memory", human_bytes(*bytes)),
-                crate::volume::Storage::Mapped { bytes, .. } => format!("{} mapped", human_bytes(*bytes)),
+                crate::volume::Storage::Read { bytes, .. } => {
+                    format!("{} read into memory", human_bytes(*bytes))
+                }
+                crate::volume::Storage::Mapped { bytes, .. } => {
+                    format!("{} mapped", human_bytes(*bytes))
+                }
             };
             let read: Vec<String> = v
                 .passes
@@ -941,7 +961,11 @@ impl Plan {
                 hi.y,
                 lo.z,
                 hi.z,
-                if sv.transform.is_some() { ", moved by its transform" } else { "" }
+                if sv.transform.is_some() {
+                    ", moved by its transform"
+                } else {
+                    ""
+                }
             );
             describe_values(s, v, "               ");
         }
@@ -965,7 +989,9 @@ fn bounding_sphere(volumes: &[PlannedVolume]) -> (glam::DVec3, f64) {
         .flat_map(|v| v.header.geometry.box_corners(v.frame.lo, v.frame.hi))
         .collect();
     let lo = corners.iter().fold(glam::DVec3::INFINITY, |a, &c| a.min(c));
-    let hi = corners.iter().fold(glam::DVec3::NEG_INFINITY, |a, &c| a.max(c));
+    let hi = corners
+        .iter()
+        .fold(glam::DVec3::NEG_INFINITY, |a, &c| a.max(c));
     let centre = 0.5 * (lo + hi);
     let radius = corners
         .iter()

@@ -154,7 +154,10 @@ fn blend_label(what: &str) -> String {
 /// with themselves through an opaque-ish transfer function (every sample of both
 /// contributes: the worst case).
 fn blend_text(table: &str, what: &str, opts: &SpeedOptions) -> String {
-    let gaussian = table.replace("synthetic = \"blobs\"", "synthetic = \"gaussian\"\nsigma = 0.3");
+    let gaussian = table.replace(
+        "synthetic = \"blobs\"",
+        "synthetic = \"gaussian\"\nsigma = 0.3",
+    );
     let (volumes, pass) = match what {
         "second" => (
             format!("[[volume]]\nname = \"g\"\n{gaussian}\n"),
@@ -471,7 +474,10 @@ mod tests {
         for what in ["second", "blend", "overlap"] {
             let s = crate::scene::parse(&blend_text(table, what, &opts), Path::new("s.toml"))
                 .unwrap_or_else(|e| panic!("{what}: {e}"));
-            assert_eq!(s.passes[0].volumes.len(), if what == "second" { 1 } else { 2 });
+            assert_eq!(
+                s.passes[0].volumes.len(),
+                if what == "second" { 1 } else { 2 }
+            );
         }
     }
 

@@ -900,7 +900,13 @@ pub fn write_manifest(
         if let (Value::Object(d), [_, _, ..]) = (&mut doc, head.headers.as_slice()) {
             // every volume of a scene of several (the data's identity is of all)
             let volumes = head.headers.iter().map(|(name, h)| {
-                let mut v = volume_json(h, &VolumeIdentity { data_xxh3: None, files: Vec::new() });
+                let mut v = volume_json(
+                    h,
+                    &VolumeIdentity {
+                        data_xxh3: None,
+                        files: Vec::new(),
+                    },
+                );
                 if let Value::Object(m) = &mut v {
                     m.remove("data");
                     m.insert("name".into(), json!(name));

@@ -41,7 +41,11 @@ pub(super) fn fit<V: Borrow<Volume>>(
     let mut corners = Vec::new();
     for ((v, loaded), norm) in plan.volumes.iter().zip(volumes).zip(norms) {
         if let (Some(volume), Some(norm)) = (loaded, norm) {
-            corners.extend(voxel_box(v, t, volume.borrow(), *norm).into_iter().flatten());
+            corners.extend(
+                voxel_box(v, t, volume.borrow(), *norm)
+                    .into_iter()
+                    .flatten(),
+            );
         }
     }
     let Some(z) = zoom(plan, &corners) else {
@@ -80,7 +84,10 @@ fn voxel_box(
     norm: Normalize,
 ) -> Option<[DVec3; 8]> {
     let [nx, ny, nz] = volume.header.sizes;
-    let crop = v.spec.crop.unwrap_or([[0, nx - 1], [0, ny - 1], [0, nz - 1]]);
+    let crop = v
+        .spec
+        .crop
+        .unwrap_or([[0, nx - 1], [0, ny - 1], [0, nz - 1]]);
     // voxels at zero threshold: strictly above the window's low end
     let hit = |v: f32| if t > 0.0 { f64::from(v) >= t } else { v > 0.0 };
     let boxes = (crop[2][0]..=crop[2][1])

@@ -25,8 +25,8 @@ pub use prepare::{data_window, value_window};
 pub use resume::completed_images;
 
 use frames::render_passes;
-use volumes::Volumes;
 use resume::{completed, create_folders, finish, jobs};
+use volumes::Volumes;
 use write::write_frame;
 
 use std::collections::HashSet;

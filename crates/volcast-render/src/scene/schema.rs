@@ -71,13 +71,21 @@ impl<'de> Deserialize<'de> for VolumeTables {
             fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
                 f.write_str("a [volume] table or [[volume]] tables")
             }
-            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<VolumeTables, A::Error> {
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> Result<VolumeTables, A::Error> {
                 VolumeTable::deserialize(serde::de::value::MapAccessDeserializer::new(map))
                     .map(VolumeTables::One)
             }
-            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, seq: A) -> Result<VolumeTables, A::Error> {
-                Vec::<Spanned<VolumeTable>>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
-                    .map(VolumeTables::Many)
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                seq: A,
+            ) -> Result<VolumeTables, A::Error> {
+                Vec::<Spanned<VolumeTable>>::deserialize(
+                    serde::de::value::SeqAccessDeserializer::new(seq),
+                )
+                .map(VolumeTables::Many)
             }
         }
         d.deserialize_any(Tables)

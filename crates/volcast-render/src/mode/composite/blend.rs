@@ -23,6 +23,7 @@ use glam::{Vec3, Vec4};
 use super::integrator::{Composite, FrontToBack};
 use crate::render::camera::Projection;
 use crate::render::clip::{clip_ray, ClipPlane};
+use crate::render::footprint::{Footprint, Windows, WINDOW_TILE};
 use crate::render::frame::{Film, RenderView, TILE};
 use crate::render::integrator::{drive, jitter_fraction, Consumer, Counts, PixelRay};
 use crate::render::march::{Lattice, March, Midpoints};
@@ -35,10 +36,10 @@ use crate::sample::Field;
 /// walked, so a ray that turns opaque stops within a chunk. The first chunk is
 /// shorter, and each next one twice as long, so that a ray that turns opaque
 /// soon wastes few samples and a long one walks its cells in few chunks.
-const CHUNK: usize = 512;
+const CHUNK: usize = 4096;
 
 /// The first chunk of a ray.
-const FIRST_CHUNK: usize = 64;
+const FIRST_CHUNK: usize = 256;
 
 /// One volume of a blend, ready to sample.
 pub(super) struct Layer<'a> {
@@ -50,6 +51,28 @@ pub(super) struct Layer<'a> {
     pub grid: Option<&'a MacroGrid>,
     /// Its box in index space and the map to it.
     pub frame: IndexFrame,
+    /// The macrocells its transfer function is not transparent in, as boxes:
+    /// per tile of a view, the part of a ray that can meet them.
+    pub footprint: Option<Footprint>,
+}
+
+impl<'a> Layer<'a> {
+    /// The volume's part of a blend: its field, tables, grid and frame.
+    pub fn new(
+        field: Box<dyn Field + 'a>,
+        composite: Composite,
+        grid: Option<&'a MacroGrid>,
+        frame: IndexFrame,
+    ) -> Layer<'a> {
+        let footprint = grid.map(|g| Footprint::new(g, |m, _range| !composite.transparency(m).0));
+        Layer {
+            field,
+            composite,
+            grid,
+            frame,
+            footprint,
+        }
+    }
 }
 
 /// A composite of several volumes, ready to render views.
@@ -106,11 +129,15 @@ impl Blend<'_> {
     }
 
     /// The pixel `(i, j)` of `view`; `None` where its ray misses every volume.
+    /// `windows[k]`, where given, limits volume `k` to the part of its tile's rays
+    /// that can meet its cells that are not transparent (the samples outside it
+    /// add nothing).
     fn trace_pixel(
         &self,
         view: &View,
         i: usize,
         j: usize,
+        windows: &[Option<Windows>],
         s: &mut Scratch,
     ) -> Option<([f32; 4], Counts)> {
         let ray = view.pixel_ray(i, j);
@@ -167,9 +194,21 @@ impl Blend<'_> {
             if a > b {
                 continue;
             }
-            let first = mids.first_at_or_after(a);
-            let mut end = mids.first_at_or_after(b);
-            while end < n && mids.t(end) <= b {
+            counts.nominal += march_samples(&mids, a, b);
+            // the part its cells that are not transparent can lie in
+            let (wa, wb) = match windows.get(k).and_then(|w| w.as_ref()) {
+                Some(w) => {
+                    let [lo, hi] = w.at(i, j);
+                    (a.max(lo), b.min(hi))
+                }
+                None => (a, b),
+            };
+            if wa > wb {
+                continue;
+            }
+            let first = mids.first_at_or_after(wa);
+            let mut end = mids.first_at_or_after(wb);
+            while end < n && mids.t(end) <= wb {
                 end += 1;
             }
             if first >= end {
@@ -182,7 +221,6 @@ impl Blend<'_> {
             let (o, d) = (h.ray.index.o.to_array(), h.ray.index.d.to_array());
             h.skips = l.grid.is_some_and(|g| g.bounds(o, d, a, b));
             parts.push((k, first, end));
-            counts.nominal += (end - first) as u64;
         }
         let mut acc = FrontToBack::new(self.early_stop);
         let (mut from, mut chunk) = (0, FIRST_CHUNK);
@@ -262,6 +300,17 @@ impl Blend<'_> {
         }
         Some((acc.finish(), counts))
     }
+}
+
+/// The midpoints of `mids` in `[a, b]`.
+fn march_samples(mids: &Midpoints<'_>, a: f64, b: f64) -> u64 {
+    let n = mids.len();
+    let first = mids.first_at_or_after(a);
+    let mut end = mids.first_at_or_after(b);
+    while end < n && mids.t(end) <= b {
+        end += 1;
+    }
+    end.saturating_sub(first) as u64
 }
 
 /// The colour and opacity of a sample from its volumes' `terms` (each with an
@@ -383,6 +432,14 @@ impl RenderView for Blend<'_> {
 
     fn render(&self, view: &View, _frame: &IndexFrame) -> (Film, Counts) {
         let mut film = Film::new(view.width, view.height, 4);
+        let windows: Vec<Option<Windows>> = self
+            .layers
+            .iter()
+            .map(|l| {
+                let f = l.footprint.as_ref()?;
+                Some(f.windows(view, &l.frame, WINDOW_TILE))
+            })
+            .collect();
         let (width, height) = (view.width, view.height);
         let row_len = width * 4;
         let band = |band: usize, rows: &mut [f32]| {
@@ -394,7 +451,7 @@ impl RenderView for Blend<'_> {
                 for j in j0..j1 {
                     for i in i0..(i0 + TILE).min(width) {
                         let (value, c) = self
-                            .trace_pixel(view, i, j, &mut s)
+                            .trace_pixel(view, i, j, &windows, &mut s)
                             .unwrap_or(([0.0; 4], Counts::default()));
                         let at = (j - j0) * row_len + i * 4;
                         rows[at..at + 4].copy_from_slice(&value);
@@ -418,7 +475,7 @@ impl RenderView for Blend<'_> {
         i: usize,
         j: usize,
     ) -> Option<([f32; 4], Counts)> {
-        self.trace_pixel(view, i, j, &mut self.scratch())
+        self.trace_pixel(view, i, j, &[], &mut self.scratch())
     }
 }
 
@@ -443,7 +500,10 @@ mod tests {
         assert!((alpha - (1.0 - 0.75 * 0.5)).abs() < 1e-7);
         assert!((c.x - 0.25 / 0.75).abs() < 1e-6 && (c.z - 0.5 / 0.75).abs() < 1e-6);
         let swapped = blended(&mut [(c2, b), (c1, a)]);
-        assert_eq!(swapped.0.to_array().map(f32::to_bits), c.to_array().map(f32::to_bits));
+        assert_eq!(
+            swapped.0.to_array().map(f32::to_bits),
+            c.to_array().map(f32::to_bits)
+        );
         assert_eq!(swapped.1.to_bits(), alpha.to_bits());
     }
 }

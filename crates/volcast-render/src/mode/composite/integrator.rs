@@ -459,7 +459,8 @@ impl Composite {
         // entries along the value axis (`Composite::new`)
         let (rgba, grad, a) = if full {
             // opacity already corrected for a whole step
-            let (rgba, grad) = unsafe { tables.full_step.rgba(field, pos, v, x, self.voxel_length) };
+            let (rgba, grad) =
+                unsafe { tables.full_step.rgba(field, pos, v, x, self.voxel_length) };
             (rgba, grad, rgba[3])
         } else {
             let length = march.t(i + 1) - march.t(i);
@@ -529,7 +530,9 @@ impl Composite {
             }
             _ => {
                 for (k, (&t, &v)) in ts.iter().zip(values).enumerate() {
-                    if let Some((c, a)) = self.midpoint_of(field, ray, march, from + k, t, v, to_eye) {
+                    if let Some((c, a)) =
+                        self.midpoint_of(field, ray, march, from + k, t, v, to_eye)
+                    {
                         out.push(((from + k) as u32, c, a));
                     }
                 }
@@ -707,10 +710,16 @@ impl<F: Field, T: Lookup> Consumer for Midpoint<'_, F, T> {
     /// Midpoint `i` is the middle of the segment from sample `i` to sample `i + 1`.
     #[inline(always)]
     fn take(&mut self, i: usize, t: f64, v: f32) -> ControlFlow<()> {
-        match self
-            .pass
-            .midpoint(self.tables, self.field, self.ray, self.march, i, t, v, self.to_eye)
-        {
+        match self.pass.midpoint(
+            self.tables,
+            self.field,
+            self.ray,
+            self.march,
+            i,
+            t,
+            v,
+            self.to_eye,
+        ) {
             Some((c, a)) => self.acc.add(c, a),
             None => ControlFlow::Continue(()),
         }

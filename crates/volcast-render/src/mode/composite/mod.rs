@@ -169,7 +169,8 @@ impl Mode for CompositeSettings {
         if self.more.is_empty() {
             m.insert("transfer".into(), self.transfer_name.clone().into());
         } else {
-            let names = std::iter::once(&self.transfer_name).chain(self.more.iter().map(|(n, _)| n));
+            let names =
+                std::iter::once(&self.transfer_name).chain(self.more.iter().map(|(n, _)| n));
             m.insert(
                 "transfers".into(),
                 names.map(|n| serde_json::Value::from(n.clone())).collect(),
@@ -233,7 +234,10 @@ impl RayMode for BlendPass {
         res: &'a Resources<'a>,
     ) -> Box<dyn RenderView + 'a> {
         let _ = res;
-        unreachable!("the blend of pass `{}` is prepared over all its volumes (view_of_volumes)", pass.name)
+        unreachable!(
+            "the blend of pass `{}` is prepared over all its volumes (view_of_volumes)",
+            pass.name
+        )
     }
 
     fn view_of_volumes<'a>(
@@ -250,12 +254,12 @@ impl RayMode for BlendPass {
                 let r = res[*k]
                     .as_ref()
                     .expect("the run prepares every volume a pass reads");
-                blend::Layer {
-                    field: part.boxed_field(r),
-                    composite: mode.integrand(part, r),
-                    grid: part.grid(r),
-                    frame: *frame,
-                }
+                blend::Layer::new(
+                    part.boxed_field(r),
+                    mode.integrand(part, r),
+                    part.grid(r),
+                    *frame,
+                )
             })
             .collect();
         Box::new(blend::Blend {

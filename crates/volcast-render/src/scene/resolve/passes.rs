@@ -128,7 +128,10 @@ impl Resolver<'_> {
                 for name in list.get_ref() {
                     match self.volume_named("volumes", name, volumes) {
                         Some(k) if out.contains(&k) => {
-                            self.err(name.span(), format!("volumes: `{}` is named twice", name.get_ref()));
+                            self.err(
+                                name.span(),
+                                format!("volumes: `{}` is named twice", name.get_ref()),
+                            );
                             ok = false;
                         }
                         Some(k) => out.push(k),
@@ -581,7 +584,9 @@ impl Keys for PassKeys<'_, '_, '_> {
         // the transfer function's name for each volume the pass reads
         let names: Vec<(String, Range<usize>)> = match v.transfer.as_ref().map(|t| t.get_ref()) {
             None if self.volumes.len() == 1 => vec![("grey".to_string(), span.clone())],
-            Some(TransferChoice::Name(n)) if self.volumes.len() == 1 => vec![(n.clone(), span.clone())],
+            Some(TransferChoice::Name(n)) if self.volumes.len() == 1 => {
+                vec![(n.clone(), span.clone())]
+            }
             None | Some(TransferChoice::Name(_)) => {
                 let list: Vec<String> = self
                     .volumes
@@ -598,7 +603,11 @@ impl Keys for PassKeys<'_, '_, '_> {
                 let mut ok = true;
                 for key in table.keys() {
                     if !self.volumes.iter().any(|&k| volumes[k].name == *key) {
-                        let read: Vec<&str> = self.volumes.iter().map(|&k| volumes[k].name.as_str()).collect();
+                        let read: Vec<&str> = self
+                            .volumes
+                            .iter()
+                            .map(|&k| volumes[k].name.as_str())
+                            .collect();
                         self.resolver.err(span.clone(), format!(
                             "transfer: `{key}` is not a volume this pass reads (it reads {}; list the volumes a composite blends in `volumes`)",
                             quoted_list(read.iter().copied())

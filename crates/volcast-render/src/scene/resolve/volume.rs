@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use toml::Spanned;
 
 use super::Resolver;
-use crate::scene::diag::{quoted_list, suggest};
 use crate::number::shown;
+use crate::scene::diag::{quoted_list, suggest};
 use crate::scene::schema::{MatrixValue, Sp, VolumeTable, VolumeTables};
 use crate::scene::{SceneVolume, Transform, Units, VolumeSpec};
 use crate::volume::dicom::DicomSpec;
@@ -59,7 +59,13 @@ impl Resolver<'_> {
             let name = match &v.name {
                 Some(n) if valid_volume_name(n.get_ref()) => n.get_ref().clone(),
                 Some(n) => {
-                    self.err(n.span(), format!("name = \"{}\": expected a volume name of letters, digits, '-' and '_'", n.get_ref()));
+                    self.err(
+                        n.span(),
+                        format!(
+                            "name = \"{}\": expected a volume name of letters, digits, '-' and '_'",
+                            n.get_ref()
+                        ),
+                    );
                     n.get_ref().clone()
                 }
                 None if many => {
@@ -106,14 +112,18 @@ impl Resolver<'_> {
             return None;
         };
         if !a.iter().all(|x| x.is_finite()) {
-            self.err(m.span(), format!("{at}: every entry must be a finite number (it has NaN or infinity)"));
+            self.err(
+                m.span(),
+                format!("{at}: every entry must be a finite number (it has NaN or infinity)"),
+            );
             return None;
         }
         if a[12..] != [0.0, 0.0, 0.0, 1.0] {
             self.err(m.span(), format!("{at}: its last row is [{}, {}, {}, {}], but a registration is affine: the last row must be [0, 0, 0, 1] (projective maps are not supported)", shown(a[12]), shown(a[13]), shown(a[14]), shown(a[15])));
             return None;
         }
-        let matrix = glam::DMat3::from_cols_array(&[a[0], a[4], a[8], a[1], a[5], a[9], a[2], a[6], a[10]]);
+        let matrix =
+            glam::DMat3::from_cols_array(&[a[0], a[4], a[8], a[1], a[5], a[9], a[2], a[6], a[10]]);
         let placed = Transform {
             matrix,
             translation: glam::DVec3::new(a[3], a[7], a[11]),
@@ -560,5 +570,7 @@ impl Resolver<'_> {
 /// A volume name: letters, digits, '-' and '_' (what a pass's `volume` key and a
 /// composite's transfer table name it by).
 fn valid_volume_name(s: &str) -> bool {
-    !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_'))
+    !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_'))
 }
