@@ -15,8 +15,9 @@ use crate::errors;
 pub enum Input {
     /// A scene file.
     File(PathBuf),
-    /// A dict (serialised to TOML) or TOML text, read as if it were a file named
-    /// `label` in the working directory (its relative paths resolve there).
+    /// A dict (serialised to TOML) or TOML text, read as if it were the file
+    /// `scene.toml` in the working directory (its relative paths resolve there;
+    /// `{scene}` is `scene`); messages name it `label` (`<dict>`, `<string>`).
     Text { text: String, label: &'static str },
 }
 
@@ -95,7 +96,8 @@ pub fn load(py: Python<'_>, input: &Input, array: bool) -> PyResult<Scene> {
         Input::Text { text, label } => {
             let cwd = std::env::current_dir()
                 .map_err(|e| PyValueError::new_err(format!("the working directory: {e}")))?;
-            (text.clone(), cwd.join(label), Some(*label))
+            // named `scene` (`{scene}` in `out`); messages name it by its label
+            (text.clone(), cwd.join("scene.toml"), Some(*label))
         }
     };
     let text = if array {
