@@ -62,27 +62,7 @@ fn describe(
     let mut value_range = [stats.min, stats.max].map(|x| h.rescale.apply(x));
     value_range.sort_by(f64::total_cmp);
     if json {
-        let json = serde_json::json!({
-            "source": h.source,
-            "sizes": h.sizes,
-            "type": h.scalar_type.nrrd_name(),
-            "bytes": h.data_bytes(),
-            "storage": if volume.data.is_mapped() { "mapped" } else { "read" },
-            "spacing": sp,
-            "origin": h.geometry.origin.to_array(),
-            "axes": h.geometry.axes.map(|a| a.to_array()),
-            "min": finite_or_null(stats.min),
-            "max": finite_or_null(stats.max),
-            "mean": finite_or_null(stats.mean),
-            "finite": stats.finite,
-            "non_finite": stats.non_finite,
-            "percentiles": { "1": finite_or_null(q(0.01)), "50": finite_or_null(q(0.5)), "99": finite_or_null(q(0.99)) },
-            "histogram": { "bins": stats.histogram.len(), "min": finite_or_null(stats.min), "max": finite_or_null(stats.max), "counts": stats.histogram },
-            "rescale": { "slope": h.rescale.slope, "intercept": h.rescale.intercept },
-            "value_min": finite_or_null(value_range[0]),
-            "value_max": finite_or_null(value_range[1]),
-            "fields": h.fields.iter().map(|(k, v)| (k.clone(), serde_json::Value::String(v.clone()))).collect::<serde_json::Map<_, _>>(),
-        });
+        let json = volcast::volume::info::json(&volume);
         let mut text = serde_json::to_string_pretty(&json)?;
         text.push('\n');
         return Ok((text, json));
@@ -178,14 +158,6 @@ fn fixed6(x: f64) -> String {
         format!("{x:.6}")
     } else {
         format!("{x:.6e}")
-    }
-}
-
-fn finite_or_null(x: f64) -> serde_json::Value {
-    if x.is_finite() {
-        serde_json::json!(x)
-    } else {
-        serde_json::Value::Null
     }
 }
 

@@ -48,6 +48,11 @@ pub enum Error {
         /// What is wrong and what was expected.
         message: String,
     },
+    /// The caller stopped the run ([`Progress::cancelled`](crate::pipeline::Progress::cancelled)
+    /// said so between views): the images written before stay, the rest are not
+    /// rendered.
+    #[error("the run was cancelled")]
+    Cancelled,
     /// An image could not be encoded.
     #[error("encoding {}: {message}", path.display())]
     Encode {

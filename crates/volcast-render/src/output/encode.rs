@@ -33,6 +33,18 @@ fn quantised<const N: usize>(
     Ok(v)
 }
 
+/// The 8-bit PNG sample of a display value: `round(clamp(v, 0, 1) * 255)`.
+#[inline]
+pub fn sample8(v: f32) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+/// The 16-bit PNG sample of a display value: `round(clamp(v, 0, 1) * 65535)`.
+#[inline]
+pub fn sample16(v: f32) -> u16 {
+    (v.clamp(0.0, 1.0) * 65535.0).round() as u16
+}
+
 /// PNG bytes of a display film (1 or 3 channels, values in [0, 1]) at 8 or 16 bits.
 pub fn png(film: &Film, sixteen: bool) -> Result<Vec<u8>, EncodeError> {
     let color = match film.channels {
@@ -42,11 +54,9 @@ pub fn png(film: &Film, sixteen: bool) -> Result<Vec<u8>, EncodeError> {
     };
     // the samples, 16-bit ones big-endian as PNG stores them
     let samples = if sixteen {
-        quantised(film, |v| {
-            ((v.clamp(0.0, 1.0) * 65535.0).round() as u16).to_be_bytes()
-        })?
+        quantised(film, |v| sample16(*v).to_be_bytes())?
     } else {
-        quantised(film, |v| [(v.clamp(0.0, 1.0) * 255.0).round() as u8])?
+        quantised(film, |v| [sample8(*v)])?
     };
     encode_png(
         film.width as u32,

@@ -88,9 +88,13 @@ pub(super) fn render_passes<V: Borrow<Volume>>(
     let mut cache: HashMap<CacheKey, Rendered> = HashMap::new();
     let mut results: Written = Vec::with_capacity(jobs.len());
     let (mut rendered_views, mut samples, mut nominal) = (0usize, 0u64, 0u64);
+    // `None` when the caller cancelled the run before every view was rendered
     let render = |todo: &[(CacheKey, (usize, usize))], runtimes: &Runtimes<'_>| {
         todo.par_iter()
             .map(|&(ck, first)| {
+                if progress.cancelled() {
+                    return None;
+                }
                 let rt = &runtimes[&ck.0];
                 let view = view_of(plan, ck.1, (plan.width, plan.height));
                 let t0 = Instant::now();
@@ -103,9 +107,9 @@ pub(super) fn render_passes<V: Borrow<Volume>>(
                     seconds: t0.elapsed().as_secs_f64(),
                     first,
                 };
-                (ck, r)
+                Some((ck, r))
             })
-            .collect::<Vec<(CacheKey, Rendered)>>()
+            .collect::<Option<Vec<(CacheKey, Rendered)>>>()
     };
     // Hands frame `k` of pass `p` to the sink, from the cached views.
     let write_one = |&(p, k): &(usize, usize),
@@ -178,10 +182,13 @@ pub(super) fn render_passes<V: Borrow<Volume>>(
                 .entry(ck.0)
                 .or_insert_with(|| plan.variants[ck.0].prepare(&resources));
         }
+        if progress.cancelled() {
+            return Err(Error::Cancelled);
+        }
         let (fresh, written) = match b.checked_sub(1) {
             None => (render(&todo, &runtimes), Ok(Vec::new())),
             // the last batch: nothing left to render beside it
-            Some(w) if todo.is_empty() => (Vec::new(), write(w, &cache, true)),
+            Some(w) if todo.is_empty() => (Some(Vec::new()), write(w, &cache, true)),
             Some(w) => std::thread::scope(|s| {
                 let writer = std::thread::Builder::new()
                     .name("volcast-writer".into())
@@ -196,6 +203,7 @@ pub(super) fn render_passes<V: Borrow<Volume>>(
             }),
         };
         results.extend(written?);
+        let fresh = fresh.ok_or(Error::Cancelled)?;
         if let Some(w) = b.checked_sub(1) {
             schedule.forget_after(w, &mut cache, &mut runtimes);
         }

@@ -52,6 +52,12 @@ pub trait Progress: Sync {
     fn advance(&self, _n: u64) {}
     /// All done.
     fn finish(&self) {}
+    /// Whether the caller asks the run to stop (a Ctrl-C in the Python module): read
+    /// before each view is rendered and each batch is written; once it says so, the
+    /// run ends with [`Error::Cancelled`].
+    fn cancelled(&self) -> bool {
+        false
+    }
 }
 
 /// Progress that is not shown.
@@ -522,6 +528,70 @@ fn films_of_plan<V: std::borrow::Borrow<Volume>>(
         .expect("no panics while holding the lock");
     views.sort_by_key(|v| (v.pass, v.frame, v.eye));
     Ok((views, summary))
+}
+
+/// One image of a (pass, frame) as its file would store it (see [`render_images`]).
+#[derive(Clone, Debug)]
+pub struct StoredImage {
+    /// Index of the pass in the scene.
+    pub pass: usize,
+    /// Frame number.
+    pub frame: usize,
+    /// The eye of a `pair` (or mono) frame; [`Eye::Mono`] for the other stereo
+    /// layouts, which hold both eyes in one image.
+    pub eye: Eye,
+    /// For PNG formats the display colours in [0, 1], overlays drawn
+    /// ([`encode::sample8`](crate::output::encode::sample8) and
+    /// [`encode::sample16`](crate::output::encode::sample16) give the files'
+    /// samples); for NRRD the raw float values the file holds.
+    pub film: Film,
+}
+
+/// Renders `scene` like [`render`] but keeps every image in memory, exactly as the
+/// files would store it (laid out, overlays drawn, before quantisation), instead of
+/// writing files; in (pass, frame, eye) order. `progress` is told of each image and
+/// may cancel the run ([`Progress::cancelled`]).
+pub fn render_images(
+    scene: &Scene,
+    opts: &RunOptions,
+    limits: &Limits,
+    progress: &dyn Progress,
+) -> Result<(Vec<StoredImage>, Summary), Error> {
+    let start = Instant::now();
+    let (_scope, plan) = preflight(scene, opts, limits)?;
+    let volumes = volumes::load(&plan, limits)?;
+    let norms = volumes::norms(&plan, &volumes)?;
+    let fitted = fit::fit(&plan, &volumes, &norms)?;
+    let plan = fitted.as_ref().map_or(&plan, |f| &f.plan);
+    let collected = std::sync::Mutex::new(Vec::new());
+    let sink = |fv: &FrameViews| {
+        let images: Vec<StoredImage> = write::frame_images(plan, fv)?
+            .into_iter()
+            .map(|(eye, film)| StoredImage {
+                pass: fv.pass,
+                frame: fv.frame,
+                eye,
+                film: film.into_owned(),
+            })
+            .collect();
+        let mut c = collected.lock().expect("no panics while holding the lock");
+        c.extend(images);
+        Ok(Vec::new())
+    };
+    let jobs = jobs(plan, &HashSet::new());
+    let emit = Emit {
+        progress,
+        prepare: &|| Ok(()),
+        sink: &sink,
+    };
+    let mut summary = render_passes(plan, &volumes, &norms, &jobs, &emit)?;
+    summary.notes.extend(fitted.map(|f| f.note));
+    let mut images = collected
+        .into_inner()
+        .expect("no panics while holding the lock");
+    images.sort_by_key(|v| (v.pass, v.frame, v.eye));
+    summary.seconds = start.elapsed().as_secs_f64();
+    Ok((images, summary))
 }
 
 /// One eye of a (pass, frame), rendered.

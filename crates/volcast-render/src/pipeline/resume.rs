@@ -43,6 +43,14 @@ pub(super) fn trusted_identity(
             files: Vec::new(),
         }));
     }
+    // an array in memory has no files to stamp: its voxels are hashed
+    if plan
+        .volumes
+        .iter()
+        .any(|v| v.is_read() && matches!(v.spec.source, crate::volume::VolumeSource::Memory(_)))
+    {
+        return Ok(None);
+    }
     let Some(recorded) = previous.and_then(manifest::recorded_identity) else {
         return Ok(None);
     };

@@ -14,12 +14,14 @@ use crate::render::{Film, ImageKind, View};
 use crate::scene::{AnaglyphColors, Format, Layout, Projection};
 use crate::views::Eye;
 
-/// Lays out, encodes and writes the images of one (pass, frame); returns each file
-/// with its manifest entry.
-pub(super) fn write_frame(
+/// The images of one (pass, frame) as its files store them, in file order: one per
+/// eye of a `pair` (or mono) frame, else the eyes laid out in one; display colours
+/// in [0, 1] with the overlays drawn for PNG formats ([`encode::sample8`] and
+/// [`encode::sample16`] quantise them), the raw values for NRRD.
+pub(super) fn frame_images<'a>(
     plan: &Plan,
-    fv: &FrameViews,
-) -> Result<Vec<(PathBuf, FileRecord)>, Error> {
+    fv: &FrameViews<'a>,
+) -> Result<Vec<(Eye, std::borrow::Cow<'a, Film>)>, Error> {
     let (p, k, window) = (fv.pass, fv.frame, fv.window);
     let outputs = &plan.output;
     let pass = &outputs.passes[p];
@@ -83,6 +85,20 @@ pub(super) fn write_frame(
         }
         _ => unreachable!("stereo frames have two eyes"),
     };
+    Ok(images)
+}
+
+/// Lays out, encodes and writes the images of one (pass, frame); returns each file
+/// with its manifest entry.
+pub(super) fn write_frame(
+    plan: &Plan,
+    fv: &FrameViews,
+) -> Result<Vec<(PathBuf, FileRecord)>, Error> {
+    let (p, k) = (fv.pass, fv.frame);
+    let outputs = &plan.output;
+    let pass = &outputs.passes[p];
+    let format = outputs.format;
+    let images = frame_images(plan, fv)?;
     let mut files = Vec::new();
     for (eye, img) in images {
         let path = frame_path(&plan.out, &pass.name, k, eye, format.extension());

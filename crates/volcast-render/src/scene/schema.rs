@@ -59,7 +59,7 @@ pub struct ClipTable {
 /// `[volume]`, or `[[volume]]` tables.
 #[derive(Debug)]
 pub enum VolumeTables {
-    One(VolumeTable),
+    One(Box<VolumeTable>),
     Many(Vec<Spanned<VolumeTable>>),
 }
 
@@ -76,7 +76,7 @@ impl<'de> Deserialize<'de> for VolumeTables {
                 map: A,
             ) -> Result<VolumeTables, A::Error> {
                 VolumeTable::deserialize(serde::de::value::MapAccessDeserializer::new(map))
-                    .map(VolumeTables::One)
+                    .map(|t| VolumeTables::One(Box::new(t)))
             }
             fn visit_seq<A: serde::de::SeqAccess<'de>>(
                 self,

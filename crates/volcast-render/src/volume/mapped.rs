@@ -129,6 +129,9 @@ pub enum ReadReason {
     /// A compressed file or data section (what it is, for the message:
     /// "a gzip-compressed file (.nii.gz)", "zlib-compressed data").
     Compressed(&'static str),
+    /// The voxels are a caller's buffer in memory ([`VolumeSource::Memory`](super::VolumeSource::Memory)),
+    /// used in place.
+    Memory,
 }
 
 impl fmt::Display for ReadReason {
@@ -143,6 +146,7 @@ impl fmt::Display for ReadReason {
             ReadReason::Encoding(e) => write!(f, "{} encoding", e.name()),
             ReadReason::DataFiles(n) => write!(f, "data split over {n} files"),
             ReadReason::Compressed(what) => f.write_str(what),
+            ReadReason::Memory => f.write_str("an array in memory, used in place"),
         }
     }
 }

@@ -17,6 +17,7 @@ pub mod confine;
 pub mod dicom;
 mod errors;
 pub mod geometry;
+pub mod info;
 pub mod limits;
 pub mod mapped;
 pub mod metaimage;
@@ -25,6 +26,7 @@ pub mod nrrd;
 pub mod raw;
 pub mod rescale;
 pub mod scalar;
+pub mod shared;
 pub mod stats;
 mod stream;
 pub mod synthetic;
@@ -37,6 +39,7 @@ pub use limits::Limits;
 pub use mapped::{MappedVoxels, ReadReason, Storage};
 pub use rescale::Rescale;
 pub use scalar::{ScalarType, TypedVoxels, VolumeData, Voxel, Voxels};
+pub use shared::{SharedVoxels, VoxelBytes};
 pub use stats::Stats;
 pub use synthetic::Synthetic;
 
@@ -186,6 +189,9 @@ pub enum VolumeSource {
     Raw(raw::RawSpec),
     /// An analytic field sampled on a grid spanning [-1, 1]^3.
     Synthetic(Synthetic),
+    /// A volume already in memory (a NumPy array given to the Python module, its
+    /// voxels [`VolumeData::Shared`]): loading it shares the voxels, never copies them.
+    Memory(std::sync::Arc<Volume>),
 }
 
 /// What is known about a volume before its voxels are read.
@@ -318,6 +324,7 @@ impl VolumeSource {
             VolumeSource::Tiff(spec) => spec.header(),
             VolumeSource::Raw(spec) => spec.header(),
             VolumeSource::Synthetic(s) => Ok(s.header()),
+            VolumeSource::Memory(v) => Ok(v.header.clone()),
         }
     }
 
@@ -335,6 +342,7 @@ impl VolumeSource {
             VolumeSource::Tiff(spec) => spec.load_hashed(limits, false).map(|(v, _)| v),
             VolumeSource::Raw(spec) => spec.load(limits),
             VolumeSource::Synthetic(s) => s.load(limits),
+            VolumeSource::Memory(v) => Ok(v.as_ref().clone()),
         }
     }
 
@@ -354,6 +362,10 @@ impl VolumeSource {
             VolumeSource::Synthetic(s) => Ok(Storage::Read {
                 bytes: s.header().data_bytes(),
                 reason: ReadReason::Synthetic,
+            }),
+            VolumeSource::Memory(v) => Ok(Storage::Read {
+                bytes: v.header.data_bytes(),
+                reason: ReadReason::Memory,
             }),
         }
     }
@@ -378,7 +390,7 @@ impl VolumeSource {
             VolumeSource::Dicom(spec) => spec.input_files()?,
             VolumeSource::Tiff(spec) => spec.input_files()?,
             VolumeSource::Raw(spec) => vec![spec.path.clone()],
-            VolumeSource::Synthetic(_) => Vec::new(),
+            VolumeSource::Synthetic(_) | VolumeSource::Memory(_) => Vec::new(),
         })
     }
 
@@ -405,6 +417,11 @@ impl VolumeSource {
             VolumeSource::Tiff(spec) => spec.load_hashed(limits, true)?,
             VolumeSource::Raw(spec) => spec.load_hashed(limits, true)?,
             VolumeSource::Synthetic(s) => (s.load(limits)?, None),
+            VolumeSource::Memory(v) => {
+                let hash =
+                    crate::with_voxels!(&v.data, x => xxhash_rust::xxh3::xxh3_128(x.as_bytes()));
+                (v.as_ref().clone(), Some(hash))
+            }
         };
         Ok((
             volume,
@@ -429,7 +446,7 @@ impl VolumeSource {
             VolumeSource::Dicom(d) => Some(&d.dir),
             VolumeSource::Tiff(t) => Some(&t.path),
             VolumeSource::Raw(r) => Some(&r.path),
-            VolumeSource::Synthetic(_) => None,
+            VolumeSource::Synthetic(_) | VolumeSource::Memory(_) => None,
         }
     }
 }

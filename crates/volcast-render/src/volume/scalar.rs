@@ -361,6 +361,8 @@ pub enum VolumeData {
     F64(Vec<f64>),
     /// Any type, mapped read-only from a file.
     Mapped(MappedVoxels),
+    /// Any type, in a buffer the caller owns (a NumPy array), used in place.
+    Shared(super::shared::SharedVoxels),
 }
 
 /// A [`Voxels`] view tagged with its element type: what [`VolumeData::typed`] returns,
@@ -452,6 +454,7 @@ impl VolumeData {
             VolumeData::F32(_) => ScalarType::Float32,
             VolumeData::F64(_) => ScalarType::Float64,
             VolumeData::Mapped(m) => m.scalar_type(),
+            VolumeData::Shared(s) => s.scalar_type(),
         }
     }
 
@@ -472,6 +475,7 @@ impl VolumeData {
             VolumeData::F32(v) => of(v),
             VolumeData::F64(v) => of(v),
             VolumeData::Mapped(m) => m.bytes(),
+            VolumeData::Shared(s) => s.bytes(),
         }
     }
 
@@ -525,9 +529,10 @@ impl VolumeData {
         self.native_bytes().len()
     }
 
-    /// Bytes of voxel data held in memory volcast allocated (0 when mapped).
+    /// Bytes of voxel data held in memory volcast allocated (0 when mapped or
+    /// shared).
     pub fn allocated_bytes(&self) -> usize {
-        if self.is_mapped() {
+        if self.is_mapped() || matches!(self, VolumeData::Shared(_)) {
             0
         } else {
             self.byte_len()
