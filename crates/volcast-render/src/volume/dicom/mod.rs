@@ -447,11 +447,8 @@ fn read_frames(path: &Path, transfer_syntax: String) -> Result<Vec<Slice>, Volum
     }
     let shared = first_item(top, tags::SHARED_FUNCTIONAL_GROUPS_SEQUENCE);
     // an RT dose: the frames' offsets along the normal from ImagePositionPatient
-    let grid = v.floats(
-        el(tags::GRID_FRAME_OFFSET_VECTOR),
-        "GridFrameOffsetVector (3004,000C)",
-        frames,
-    );
+    // read when a frame has no position of its own
+    let mut grid: Option<Option<Vec<f64>>> = None;
     let dose_scaling = v.floats(
         el(tags::DOSE_GRID_SCALING),
         "DoseGridScaling (3004,000E)",
@@ -529,15 +526,21 @@ fn read_frames(path: &Path, transfer_syntax: String) -> Result<Vec<Slice>, Volum
         let mut position = DVec3::new(position[0], position[1], position[2]);
         if frames > 1 && !in_frame {
             // the position of each frame: per frame, or the RT dose grid's offsets
+            if grid.is_none() {
+                grid = Some(v.floats(
+                    el(tags::GRID_FRAME_OFFSET_VECTOR),
+                    "GridFrameOffsetVector (3004,000C)",
+                    frames,
+                )?);
+            }
             let offsets = match &grid {
-                Ok(Some(o)) => o,
-                Ok(None) => {
+                Some(Some(o)) => o,
+                _ => {
                     return Err(VolumeError::Unsupported {
                         path: path.to_path_buf(),
                         message: format!("{frames} frames without a position each (PlanePositionSequence (0020,9113) in PerFrameFunctionalGroupsSequence (5200,9230), or GridFrameOffsetVector (3004,000C)): its frames are not slices of a volume (a cine loop, or a multi-frame secondary capture?)"),
                     })
                 }
-                Err(e) => return Err(header_err(path, e.to_string())),
             };
             let normal = x.cross(y).normalize();
             // PS3.3 C.8.8.3.2: relative to ImagePositionPatient when the first offset

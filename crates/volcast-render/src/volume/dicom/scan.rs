@@ -525,12 +525,35 @@ mod tests {
             e.contains("(7FE0,0010)") && e.contains("declares 4294967294 bytes"),
             "{e}"
         );
-        // a deflated data set is not walked: its syntax is refused by name later
-        let (_d, p) = file_with(b"1.2.840.10008.1.2.1.99", &[0x78, 0x9c, 1, 2, 3]);
+        // a data set of a syntax not read is not walked: it is refused by name later
+        let (_d, p) = file_with(b"1.2.840.10008.1.2.4.80", &[0x78, 0x9c, 1, 2, 3]);
         assert_eq!(
             scan(&p).unwrap().unwrap().transfer_syntax,
-            "1.2.840.10008.1.2.1.99"
+            "1.2.840.10008.1.2.4.80"
         );
+        // a deflated data set is walked inflated: the huge element inside it is
+        // refused against the inflated length, and bytes that do not inflate too
+        let deflated = |body: &[u8]| {
+            use std::io::Write;
+            let mut z = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::best());
+            z.write_all(body).unwrap();
+            z.finish().unwrap()
+        };
+        let mut body = vec![0x28, 0, 0x10, 0, b'U', b'S', 2, 0, 8, 0];
+        body.extend(huge_ob((0x0029, 0x1010)));
+        let (_d, p) = file_with(b"1.2.840.10008.1.2.1.99", &deflated(&body));
+        let e = scan(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("(0029,1010)")
+                && e.contains("but only 8 are left")
+                && e.contains("inflated data set"),
+            "{e}"
+        );
+        let (_d, p) = file_with(b"1.2.840.10008.1.2.1.99", &deflated(&body[..10]));
+        assert!(scan(&p).unwrap().is_some());
+        let (_d, p) = file_with(b"1.2.840.10008.1.2.1.99", &[0xFF, 0xFF, 1, 2, 3]);
+        let e = scan(&p).unwrap_err().to_string();
+        assert!(e.contains("does not inflate"), "{e}");
         // not DICOM
         let dir = tempfile::tempdir().unwrap();
         let q = dir.path().join("notes.txt");
