@@ -154,7 +154,7 @@ fn info_says_what_is_lossy() {
         ),
         (
             "dicom_j2k_lossy.dcm",
-            "yes: transfer syntax JPEG 2000 Image Compression (lossy compression); LossyImageCompression (0028,2110) 01, ratio 4, method ISO_15444_1",
+            "yes: transfer syntax JPEG 2000 Image Compression (lossless or lossy compression); LossyImageCompression (0028,2110) 01, ratio 4, method ISO_15444_1",
         ),
         ("dicom_rle_ct.dcm", "no"),
         ("dicom_j2k_ct.dcm", "no"),

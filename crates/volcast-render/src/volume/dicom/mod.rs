@@ -1,6 +1,6 @@
 //! DICOM series (a folder of slices, `format = "dicom"`, or one file), read with the
 //! `dicom` crate family (`dicom-object`; pixel data decoders of
-//! `dicom-transfer-syntax-registry`, see [`pixels`]).
+//! `dicom-transfer-syntax-registry`, see `pixels.rs`).
 //!
 //! ```text
 //! DicomSpec::files    every regular file of the folder (no subfolders), in name order,
@@ -935,11 +935,12 @@ impl DicomSpec {
         }
         let lossy_flag = files.iter().any(|f| f.lossy.as_ref().is_some_and(|l| l.0));
         let mut why = Vec::new();
-        if !lossy_syntaxes.is_empty() {
-            why.push(format!(
-                "transfer syntax {} (lossy compression)",
-                lossy_syntaxes.join(", ")
-            ));
+        for name in &lossy_syntaxes {
+            why.push(if name.starts_with("JPEG 2000") {
+                format!("transfer syntax {name} (lossless or lossy compression)")
+            } else {
+                format!("transfer syntax {name} (lossy compression)")
+            });
         }
         why.extend(flags.iter().map(|f| f.to_string()));
         let lossy = if lossy_flag || lossy_syntaxes.iter().any(|n| !n.starts_with("JPEG 2000")) {
