@@ -1032,12 +1032,17 @@ impl DicomSpec {
         for (i, s) in series.slices.iter().enumerate() {
             last_use.insert(&s.path, i);
         }
-        let mut open_files: BTreeMap<&Path, DefaultDicomObject> = BTreeMap::new();
+        // with its native pixel data as bytes, made once (not once per frame)
+        let mut open_files: BTreeMap<&Path, (DefaultDicomObject, Option<Vec<u8>>)> =
+            BTreeMap::new();
         for (i, s) in series.slices.iter().enumerate() {
             if !open_files.contains_key(s.path.as_path()) {
-                open_files.insert(&s.path, open(&s.path, false)?);
+                open_files.insert(&s.path, (open(&s.path, false)?, None));
             }
-            let bytes = frame_cells(&open_files[s.path.as_path()], s)?;
+            let Some((obj, native)) = open_files.get_mut(s.path.as_path()) else {
+                unreachable!("opened above");
+            };
+            let bytes = frame_cells(obj, native, s)?;
             if last_use[s.path.as_path()] == i {
                 open_files.remove(s.path.as_path());
             }
@@ -1072,8 +1077,13 @@ impl DicomSpec {
 }
 
 /// The cells of slice `s` (a frame of its file `obj`), little-endian: cut from native
-/// pixel data, or decoded from the frame's fragments.
-fn frame_cells(obj: &DefaultDicomObject, s: &Slice) -> Result<Vec<u8>, VolumeError> {
+/// pixel data (its bytes kept in `native` for the file's other frames), or decoded
+/// from the frame's fragments.
+fn frame_cells(
+    obj: &DefaultDicomObject,
+    native: &mut Option<Vec<u8>>,
+    s: &Slice,
+) -> Result<Vec<u8>, VolumeError> {
     let data_err = |message: String| VolumeError::Data {
         path: s.path.clone(),
         message: format!("{}{message}", s.frame_note()),
@@ -1112,9 +1122,22 @@ fn frame_cells(obj: &DefaultDicomObject, s: &Slice) -> Result<Vec<u8>, VolumeErr
             syntax.name
         )));
     }
-    let bytes = pixels
-        .to_bytes()
-        .map_err(|e| data_err(format!("PixelData (7FE0,0010): {e}")))?;
+    // the value's own bytes when it holds bytes (as the crate reads pixel data);
+    // a conversion is made once and kept for the file's other frames
+    let borrowed;
+    let bytes: &[u8] = match native {
+        Some(b) => b,
+        None => match pixels
+            .to_bytes()
+            .map_err(|e| data_err(format!("PixelData (7FE0,0010): {e}")))?
+        {
+            std::borrow::Cow::Borrowed(b) => {
+                borrowed = b;
+                borrowed
+            }
+            std::borrow::Cow::Owned(v) => native.insert(v),
+        },
+    };
     let total = need * s.frames;
     if bytes.len() < total || bytes.len() > total + 1 {
         return Err(VolumeError::Data {
