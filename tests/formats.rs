@@ -54,6 +54,30 @@ const PAIRS: &[(&str, &str, &str)] = &[
     ("f32_zlib.mha", "f32_zlib_ref.nrrd", ""),
     ("dicom_ct", "dicom_ct_a_ref.nrrd", DICOM_A),
     ("dicom_ct", "dicom_ct_b_ref.nrrd", DICOM_B),
+    // multi-frame and compressed DICOM (make_dicom_mf.py): series A's and B's voxels
+    // and geometry as enhanced multi-frame objects, alone or as a series of them
+    ("dicom_mf_ct.dcm", "dicom_ct_a_ref.nrrd", ""),
+    ("dicom_mf_mr.dcm", "dicom_ct_b_ref.nrrd", ""),
+    (
+        "dicom_mf_series",
+        "dicom_ct_a_ref.nrrd",
+        "format = \"dicom\"",
+    ),
+    ("dicom_rle_ct.dcm", "dicom_ct_a_ref.nrrd", ""),
+    ("dicom_deflate_ct.dcm", "dicom_ct_a_ref.nrrd", ""),
+    ("dicom_jpegll_ct.dcm", "dicom_ct_a_ref.nrrd", ""),
+    ("dicom_jpegll_fragments.dcm", "dicom_ct_a_ref.nrrd", ""),
+    ("dicom_j2k_ct.dcm", "dicom_ct_a_ref.nrrd", ""),
+    // pydicom's own test files: an RT dose of 15 frames, uncompressed and RLE; an MR
+    // slice in RLE and JPEG 2000
+    ("pydicom_rtdose.dcm", "pydicom_rtdose_ref.nrrd", ""),
+    ("pydicom_rtdose_rle.dcm", "pydicom_rtdose_ref.nrrd", ""),
+    ("pydicom_MR_small_RLE.dcm", "pydicom_mr_small_ref.nrrd", ""),
+    (
+        "pydicom_MR_small_jp2klossless.dcm",
+        "pydicom_mr_small_ref.nrrd",
+        "",
+    ),
     // TIFF stacks written by tifffile (make_tiff.py)
     ("tiff_u8.tif", "tiff_u8_ref.nrrd", ""),
     ("tiff_u16_lzw.tif", "tiff_u16_lzw_ref.nrrd", ""),
@@ -88,6 +112,9 @@ fn dicom(folder: &str, series: Option<&str>) -> VolumeSource {
 fn source(name: &str, lines: &str) -> VolumeSource {
     if let Some(series) = lines.split("series = ").nth(1) {
         return dicom(name, Some(series.trim_matches('"')));
+    }
+    if name.ends_with(".dcm") || lines == "format = \"dicom\"" {
+        return dicom(name, None);
     }
     if name.starts_with("tiff_") {
         return VolumeSource::Tiff(TiffSpec {
@@ -656,8 +683,15 @@ fn dicom_series_problems_are_named() {
     assert!(e.contains("series = \"9.9\" is not in the folder"), "{e}");
     let e = dicom("dicom_tilt", None).header().unwrap_err().to_string();
     assert!(e.contains("gantry tilt"), "{e}");
-    let e = dicom("dicom_jpeg", None).header().unwrap_err().to_string();
-    assert!(e.contains("1.2.840.10008.1.2.4.50 (JPEG Baseline"), "{e}");
+    // a JPEG Baseline slice whose stream is a stub: read, but not decoded
+    let e = dicom("dicom_jpeg", None)
+        .load(&Limits::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("s.dcm") && e.contains("JPEG Baseline") && e.contains("JPEG marker segment"),
+        "{e}"
+    );
     // a missing slice: uneven spacing; a slice cut short: the declared length
     let tmp = tempfile::tempdir().unwrap();
     let copy = |skip: &str, cut: Option<&str>| {

@@ -15,6 +15,7 @@ mod determinism;
 mod exit_codes;
 mod fit;
 mod formats;
+mod formats_dicom;
 mod formats_hostile;
 mod formats_tiff;
 mod fuzz;

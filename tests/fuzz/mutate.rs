@@ -261,15 +261,88 @@ fn dicom_header(implicit: bool, tag: (u16, u16), vr: &[u8; 2], len: u32) -> Vec<
     v
 }
 
+/// Edits of a multi-frame or compressed DICOM file where its frames are found:
+/// NumberOfFrames made larger, smaller or 0; in encapsulated pixel data a fragment's
+/// length made huge or odd, the basic offset table's offsets changed, the bytes of a
+/// codestream header (JPEG SOFn, JPEG 2000 SIZ, the RLE header) overwritten.
+/// `false` when the file has neither.
+fn mutate_frames(rng: &mut Rng, b: &mut [u8]) -> bool {
+    let find = |b: &[u8], what: &[u8]| b.windows(what.len()).position(|w| w == what);
+    let frames = find(b, &[0x28, 0, 0x08, 0, b'I', b'S'])
+        .map(|i| (i + 8, usize::from(b[i + 6])))
+        .or_else(|| find(b, &[0x28, 0, 0x08, 0, 2, 0, 0, 0]).map(|i| (i + 8, 2)));
+    let pixels = find(
+        b,
+        &[
+            0xE0, 0x7F, 0x10, 0x00, b'O', b'B', 0, 0, 0xFF, 0xFF, 0xFF, 0xFF,
+        ],
+    );
+    match (frames, pixels, rng.below(2)) {
+        (Some((at, len)), _, 0) | (Some((at, len)), None, _) => {
+            let text = *rng.pick(&[&b"0"[..], b"1", b"2", b"99", b"65535", b"-1", b"2147483647"]);
+            let mut v = text.to_vec();
+            v.resize(len, b' ');
+            v.truncate(len);
+            if let Some(dst) = b.get_mut(at..at + len) {
+                dst.copy_from_slice(&v);
+            }
+            true
+        }
+        (_, Some(p), _) => {
+            // the offset table's item, then the fragments' items
+            let mut items = Vec::new();
+            let mut i = p + 12;
+            while i + 8 <= b.len() && b[i..i + 4] == [0xFE, 0xFF, 0x00, 0xE0] {
+                let n = u32::from_le_bytes(b[i + 4..i + 8].try_into().unwrap_or_default());
+                items.push(i);
+                i = i.saturating_add(8).saturating_add(n as usize);
+            }
+            let Some(&item) = items.get(rng.below(items.len().max(1))) else {
+                return false;
+            };
+            match rng.below(3) {
+                0 => {
+                    let n = *rng.pick(&[0xFFFF_FFF0u32, 0x7FFF_FFFF, 3, 0, 65_536]);
+                    b[item + 4..item + 8].copy_from_slice(&n.to_le_bytes());
+                }
+                1 => {
+                    // values of the offset table (or of a fragment's first bytes)
+                    let at = items[0] + 8 + 4 * rng.below(4);
+                    let v = *rng.pick(&[0u32, 7, 8, 0xFFFF_FFFF, 24]);
+                    if let Some(dst) = b.get_mut(at..at + 4) {
+                        dst.copy_from_slice(&v.to_le_bytes());
+                    }
+                }
+                _ => {
+                    // a codestream header: bytes near the fragment's start
+                    for _ in 0..1 + rng.below(4) {
+                        let at = item + 8 + rng.below(64);
+                        let v = *rng.pick(&[0u8, 0xFF, 0x01, 0x7F, 0x80]);
+                        if let Some(x) = b.get_mut(at) {
+                            *x = v;
+                        }
+                    }
+                }
+            }
+            true
+        }
+        _ => false,
+    }
+}
+
 /// Structural edits of a DICOM file where the readers look for lengths: a sequence
 /// at the start of the data set whose item begins with an element of a private
 /// group, of group 0000 or 0002, or an item tag, declaring a huge length over a few
 /// real bytes; items of defined and undefined length, nested sequences, stray
-/// delimiters; the file meta group length made short or long.
+/// delimiters; the file meta group length made short or long; and where a
+/// multi-frame or compressed file's frames are found ([`mutate_frames`]).
 fn mutate_dicom(rng: &mut Rng, b: &mut Vec<u8>) {
     let Some(meta_end) = dicom_meta_end(b) else {
         return;
     };
+    if rng.below(2) == 0 && mutate_frames(rng, b) {
+        return;
+    }
     let implicit = b[..meta_end]
         .windows(18)
         .any(|w| w == b"1.2.840.10008.1.2\0");
@@ -630,9 +703,11 @@ pub fn corpus(kind: Kind, root: &Path) -> Vec<Seed> {
             seeds.extend(read_dir(root.join("tests/bad/nrrd"), &["nrrd", "nhdr"]));
         }
         Kind::Formats => {
+            // with the multi-frame and compressed DICOM files (a case of a .dcm is
+            // read as the one file of a folder, see `place`)
             seeds.extend(read_dir(
                 root.join("tests/fixtures/formats"),
-                &["nii", "gz", "mha", "mhd", "tif"],
+                &["nii", "gz", "mha", "mhd", "tif", "dcm"],
             ));
             // DICOM slices: a case is one slice in a folder of its own (see `place`)
             seeds.extend(read_dir(

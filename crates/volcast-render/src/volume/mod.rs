@@ -254,6 +254,8 @@ pub enum FileFormat {
     MetaImage,
     /// `.tif`, `.tiff` (and `.ome.tif`)
     Tiff,
+    /// `.dcm`, `.dicom`: one DICOM file (a multi-frame object, or a single slice)
+    Dicom,
 }
 
 impl FileFormat {
@@ -269,6 +271,8 @@ impl FileFormat {
             Some(FileFormat::MetaImage)
         } else if ext(".tif") || ext(".tiff") {
             Some(FileFormat::Tiff)
+        } else if ext(".dcm") || ext(".dicom") {
+            Some(FileFormat::Dicom)
         } else {
             None
         }
@@ -294,7 +298,13 @@ impl VolumeSource {
         if tiff_glob || (path.is_dir() && tiff::holds_tiffs(path)) {
             return Ok(tiff(path));
         }
-        if path.is_dir() {
+        // a folder of slices, or one DICOM file (by its extension, or `DICM` at byte
+        // 128 of a file of no other known format)
+        let dicom_file = || {
+            FileFormat::from_path(path).is_none_or(|f| f == FileFormat::Dicom)
+                && dicom::is_dicom_file(path)
+        };
+        if path.is_dir() || dicom_file() {
             return Ok(VolumeSource::Dicom(dicom::DicomSpec {
                 dir: path.to_path_buf(),
                 series: None,
@@ -310,6 +320,11 @@ impl VolumeSource {
             }
             Some(FileFormat::MetaImage) => VolumeSource::MetaImage(path.to_path_buf()),
             Some(FileFormat::Tiff) => tiff(path),
+            // not a DICOM file: the reader says why
+            Some(FileFormat::Dicom) => VolumeSource::Dicom(dicom::DicomSpec {
+                dir: path.to_path_buf(),
+                series: None,
+            }),
             Some(FileFormat::Nrrd) | None => VolumeSource::Nrrd(path.to_path_buf()),
         })
     }

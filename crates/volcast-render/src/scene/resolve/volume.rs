@@ -37,6 +37,7 @@ impl From<FileFormat> for Format {
             FileFormat::Nifti => Format::Nifti,
             FileFormat::MetaImage => Format::MetaImage,
             FileFormat::Tiff => Format::Tiff,
+            FileFormat::Dicom => Format::Dicom,
         }
     }
 }
@@ -464,7 +465,7 @@ impl Resolver<'_> {
         match format {
             None => {
                 self.err(p.span(), format!(
-                    "cannot tell the format of \"{}\": use a .nrrd/.nhdr, .nii/.nii.gz, .mha/.mhd or .tif/.tiff file, or set format = \"raw\" with sizes and type, format = \"dicom\" for a folder of DICOM slices, or format = \"tiff\" for a folder of TIFF slices",
+                    "cannot tell the format of \"{}\": use a .nrrd/.nhdr, .nii/.nii.gz, .mha/.mhd, .tif/.tiff or .dcm file, or set format = \"raw\" with sizes and type, format = \"dicom\" for a folder of DICOM slices (or a DICOM file), or format = \"tiff\" for a folder of TIFF slices",
                     p.get_ref()
                 ));
                 None

@@ -3,9 +3,11 @@
 //! every length the crate will read is checked here against the bytes left in the
 //! file first. The walk follows the crate's own reading step by step (its file meta
 //! loop bounded by (0002,0000), then the token states of its data set reader), so
-//! that no element it reads escapes the check. Also reads the transfer syntax from
-//! the file meta group, so that compressed data is refused by name before it is
-//! parsed.
+//! that no element it reads escapes the check. A deflated data set is inflated twice
+//! as it streams (nothing kept): once to learn its length (at most
+//! [`MAX_INFLATED`]), once to walk it against that length. Also reads the transfer
+//! syntax from the file meta group, so that a syntax not read is refused by name
+//! before its data set is parsed.
 
 use std::io::{self, BufRead, BufReader, Read};
 use std::path::Path;
@@ -22,6 +24,9 @@ const KNOWN_VRS: [&[u8; 2]; 34] = [
     b"OD", b"OF", b"OL", b"OV", b"OW", b"PN", b"SH", b"SL", b"SQ", b"SS", b"ST", b"SV", b"TM",
     b"UC", b"UI", b"UL", b"UN", b"UR", b"US", b"UT", b"UV",
 ];
+
+/// The longest a deflated data set may inflate to (element lengths are 32-bit).
+const MAX_INFLATED: u64 = 1 << 32;
 
 /// Deepest nesting of sequences accepted.
 const MAX_DEPTH: usize = 32;
@@ -49,6 +54,7 @@ pub(super) fn scan(path: &Path) -> Result<Option<Scanned>, VolumeError> {
         pos: 0,
         len,
         path,
+        inflated: false,
     };
     let mut head = [0u8; 132];
     if len < 132 || r.read_exact(&mut head).is_err() || &head[128..] != b"DICM" {
@@ -101,19 +107,44 @@ pub(super) fn scan(path: &Path) -> Result<Option<Scanned>, VolumeError> {
             "the file meta group (its {group_length} bytes by (0002,0000)) has no transfer syntax (0002,0010)"
         )));
     };
-    let (explicit, little) = match transfer_syntax.as_str() {
-        "1.2.840.10008.1.2" => (false, true),
-        "1.2.840.10008.1.2.1" => (true, true),
-        // any other syntax is refused by name before the crate reads the data set
-        // (which may be deflated, so not walkable here)
-        _ => {
-            return Ok(Some(Scanned {
-                transfer_syntax,
-                sop_class,
-            }))
+    match transfer_syntax.as_str() {
+        "1.2.840.10008.1.2" => r.walk(false, true)?,
+        "1.2.840.10008.1.2.1.99" => {
+            // the rest of the file is a raw deflate stream of an explicit VR
+            // little-endian data set
+            let at = r.pos;
+            let inflated = |r: &mut Walker<BufReader<std::fs::File>>| {
+                let mut file = r.r.get_ref().try_clone().map_err(|e| r.io(e))?;
+                io::Seek::seek(&mut file, io::SeekFrom::Start(at)).map_err(|e| r.io(e))?;
+                Ok::<_, VolumeError>(flate2::read::DeflateDecoder::new(BufReader::new(file)))
+            };
+            let inflate_err = |e: io::Error| VolumeError::Data {
+                path: path.to_path_buf(),
+                message: format!("the deflated data set (from byte {at}) does not inflate: {e}"),
+            };
+            let stream = inflated(&mut r)?;
+            let n = io::copy(&mut stream.take(MAX_INFLATED + 1), &mut io::sink())
+                .map_err(inflate_err)?;
+            if n > MAX_INFLATED {
+                return Err(r.error(format!(
+                    "the deflated data set (from byte {at}) inflates to more than {MAX_INFLATED} bytes"
+                )));
+            }
+            let stream = inflated(&mut r)?;
+            let mut d = Walker {
+                r: BufReader::new(stream),
+                pos: 0,
+                len: n,
+                path,
+                inflated: true,
+            };
+            d.walk(true, true)?;
         }
-    };
-    r.walk(explicit, little)?;
+        // the compressed syntaxes read: explicit VR little-endian data sets
+        ts if super::pixels::readable(ts).is_some() => r.walk(true, true)?,
+        // any other syntax is refused by name before the crate reads the data set
+        _ => {}
+    }
     Ok(Some(Scanned {
         transfer_syntax,
         sop_class,
@@ -155,22 +186,31 @@ struct Open {
     pixel: bool,
 }
 
-struct Walker<'a> {
-    r: BufReader<std::fs::File>,
+struct Walker<'a, R> {
+    r: R,
     pos: u64,
     len: u64,
     path: &'a Path,
+    /// Walking an inflated data set: positions are bytes of it, not of the file.
+    inflated: bool,
 }
 
-impl Walker<'_> {
+impl<R: BufRead> Walker<'_, R> {
     fn error(&self, message: String) -> VolumeError {
         VolumeError::Data {
             path: self.path.to_path_buf(),
-            message,
+            message: if self.inflated {
+                format!("{message} (of the inflated data set)")
+            } else {
+                message
+            },
         }
     }
 
     fn io(&self, e: io::Error) -> VolumeError {
+        if self.inflated && e.kind() != io::ErrorKind::UnexpectedEof {
+            return self.error(format!("the deflated data set does not inflate: {e}"));
+        }
         io_error(self.path, self.pos, e)
     }
 
@@ -485,12 +525,35 @@ mod tests {
             e.contains("(7FE0,0010)") && e.contains("declares 4294967294 bytes"),
             "{e}"
         );
-        // a deflated data set is not walked: its syntax is refused by name later
-        let (_d, p) = file_with(b"1.2.840.10008.1.2.1.99", &[0x78, 0x9c, 1, 2, 3]);
+        // a data set of a syntax not read is not walked: it is refused by name later
+        let (_d, p) = file_with(b"1.2.840.10008.1.2.4.80", &[0x78, 0x9c, 1, 2, 3]);
         assert_eq!(
             scan(&p).unwrap().unwrap().transfer_syntax,
-            "1.2.840.10008.1.2.1.99"
+            "1.2.840.10008.1.2.4.80"
         );
+        // a deflated data set is walked inflated: the huge element inside it is
+        // refused against the inflated length, and bytes that do not inflate too
+        let deflated = |body: &[u8]| {
+            use std::io::Write;
+            let mut z = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::best());
+            z.write_all(body).unwrap();
+            z.finish().unwrap()
+        };
+        let mut body = vec![0x28, 0, 0x10, 0, b'U', b'S', 2, 0, 8, 0];
+        body.extend(huge_ob((0x0029, 0x1010)));
+        let (_d, p) = file_with(b"1.2.840.10008.1.2.1.99", &deflated(&body));
+        let e = scan(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("(0029,1010)")
+                && e.contains("but only 8 are left")
+                && e.contains("inflated data set"),
+            "{e}"
+        );
+        let (_d, p) = file_with(b"1.2.840.10008.1.2.1.99", &deflated(&body[..10]));
+        assert!(scan(&p).unwrap().is_some());
+        let (_d, p) = file_with(b"1.2.840.10008.1.2.1.99", &[0xFF, 0xFF, 1, 2, 3]);
+        let e = scan(&p).unwrap_err().to_string();
+        assert!(e.contains("does not inflate"), "{e}");
         // not DICOM
         let dir = tempfile::tempdir().unwrap();
         let q = dir.path().join("notes.txt");
