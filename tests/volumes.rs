@@ -385,3 +385,61 @@ fn bad_volume_references_are_located_errors() {
         );
     }
 }
+
+/// Each volume's values are in its own units: a pass over a second volume of
+/// `units = "data"` reads its iso value, its keyframed iso value and its transfer
+/// function's knots in that volume's data values, as a scene of that volume alone.
+#[test]
+fn a_pass_takes_the_units_of_its_volume() {
+    let b = "synthetic = \"ball\"\nradius = 0.6\nsizes = [25, 25, 25]\nwindow = [0, 2]\nunits = \"data\"\n";
+    let passes = |volume: &str| {
+        format!(
+            "[transfer.datatf]\ncolor = [[0.0, [1.0, 0.8, 0.6]]]\nalpha = [[0.0, 0.0], [0.4, 0.0], [1.6, 0.7]]\n\
+             [[render]]\nname = \"iso\"\nmode = \"surface\"\niso = 0.8\n{volume}\
+             [[render]]\nname = \"tf\"\nmode = \"composite\"\ntransfer = \"datatf\"\n{volume}\
+             [[keyframe]]\nframe = 0\nazimuth = 0.0\nrender.iso.iso = 0.8\n\
+             [[keyframe]]\nframe = 1\nazimuth = 30.0\nrender.iso.iso = 1.2\n"
+        )
+    };
+    let view = VIEW;
+    let alone = format!("[volume]\n{b}{view}{}", passes(""));
+    let named = format!(
+        "{ANATOMY}[[volume]]\nname = \"b\"\n{b}{view}{}",
+        passes("volume = \"b\"\n")
+    );
+    let (x, y) = (render(&alone), render(&named));
+    assert_eq!(bits(&x), bits(&y));
+    assert!(x.iter().any(|v| v.film.data.iter().any(|&p| p > 0.1)));
+}
+
+/// The peak memory of a run of two volumes is at most the sum of the two runs of
+/// one volume each (each volume and its precomputations counted once).
+#[cfg(unix)]
+#[test]
+fn two_volumes_take_at_most_the_memory_of_two_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let a = "synthetic = \"gaussian\"\nsigma = 0.4\nsizes = [160, 160, 160]\n";
+    let b = "synthetic = \"ball\"\nradius = 0.5\nsizes = [160, 160, 160]\n";
+    let tail = "[orbit]\nframes = 2\n[image]\nsize = [64, 64]\n[transfer.r]\ncolor = [[0.0, [1.0, 1.0, 1.0]]]\nalpha = [[0.0, 0.0], [0.2, 0.0], [1.0, 0.5]]\n";
+    let scenes = [
+        ("a.toml", format!("[volume]\n{a}{tail}[[render]]\nmode = \"composite\"\ntransfer = \"r\"\nshading = \"phong\"\n")),
+        ("b.toml", format!("[volume]\n{b}{tail}[[render]]\nmode = \"composite\"\ntransfer = \"r\"\nshading = \"phong\"\n")),
+        ("ab.toml", format!("[[volume]]\nname = \"a\"\n{a}[[volume]]\nname = \"b\"\n{b}{tail}[[render]]\nmode = \"composite\"\nvolumes = [\"a\", \"b\"]\ntransfer = {{ a = \"r\", b = \"r\" }}\nshading = \"phong\"\n")),
+    ];
+    let mut peaks = Vec::new();
+    for (name, text) in &scenes {
+        std::fs::write(tmp.path().join(name), text).unwrap();
+        let out = format!("out_{name}");
+        let m = crate::util::measured(tmp.path(), &["render", name, "--out", &out, "--quiet"]);
+        assert_eq!(m.code, Some(0), "{name}: {}", m.stderr);
+        peaks.push(m.peak_rss);
+    }
+    let (a, b, ab) = (peaks[0], peaks[1], peaks[2]);
+    // each run holds its volume (16 MiB) and its gradient volume (48 MiB)
+    assert!(a > 60 << 20 && b > 60 << 20, "{a} {b}");
+    assert!(ab <= a + b, "two volumes: {ab} bytes, one each: {a} + {b}");
+    assert!(
+        ab > a.max(b),
+        "two volumes hold more than one: {ab} vs {a}, {b}"
+    );
+}

@@ -143,6 +143,7 @@ fn blend_label(what: &str) -> String {
     match what {
         "second" => "composite (gaussian alone)",
         "blend" => "composite of 2 volumes",
+        "dense" => "composite (dense transfer function)",
         _ => "composite of 2, overlapping",
     }
     .into()
@@ -150,9 +151,10 @@ fn blend_label(what: &str) -> String {
 
 /// A composite case of several volumes on the synthetic field `table` (the
 /// `[volume]` body of the blobs): `second`, a Gaussian of the same size alone;
-/// `blend`, the blobs and the Gaussian blended; `overlap`, the blobs blended
-/// with themselves through an opaque-ish transfer function (every sample of both
-/// contributes: the worst case).
+/// `blend`, the blobs and the Gaussian blended; `dense`, the blobs alone through
+/// an opaque-ish transfer function that is nowhere transparent; `overlap`, the
+/// blobs blended with themselves through it (every sample of both contributes:
+/// the worst case, against `dense`).
 fn blend_text(table: &str, what: &str, opts: &SpeedOptions) -> String {
     let gaussian = table.replace(
         "synthetic = \"blobs\"",
@@ -162,6 +164,10 @@ fn blend_text(table: &str, what: &str, opts: &SpeedOptions) -> String {
         "second" => (
             format!("[[volume]]\nname = \"g\"\n{gaussian}\n"),
             "transfer = \"hot\"\n".to_string(),
+        ),
+        "dense" => (
+            format!("[[volume]]\nname = \"b\"\n{table}\n"),
+            "transfer = \"dense\"\n".to_string(),
         ),
         "blend" => (
             format!("[[volume]]\nname = \"b\"\n{table}\n[[volume]]\nname = \"g\"\n{gaussian}\n"),
@@ -239,9 +245,10 @@ pub fn speed(
             None => None,
         };
         if let Some(second) = &second {
-            for what in ["second", "blend", "overlap"] {
+            for what in ["second", "blend", "dense", "overlap"] {
                 let volumes = match what {
                     "second" => vec![second],
+                    "dense" => vec![&volume],
                     "blend" => vec![&volume, second],
                     _ => vec![&volume, &volume],
                 };

@@ -322,7 +322,13 @@ fn blended(terms: &mut [(Vec4, f32)]) -> (Vec4, f32) {
         return *one;
     }
     let key = |(c, a): &(Vec4, f32)| (a.to_bits(), c.x.to_bits(), c.y.to_bits(), c.z.to_bits());
-    terms.sort_unstable_by_key(key);
+    if let [x, y] = terms {
+        if key(y) < key(x) {
+            std::mem::swap(x, y);
+        }
+    } else {
+        terms.sort_unstable_by_key(key);
+    }
     let (mut transmit, mut weight) = (1.0f64, 0.0f64);
     let mut colour = glam::DVec3::ZERO;
     for (c, a) in terms.iter() {

@@ -160,7 +160,14 @@ impl Resolver<'_> {
                 }
                 if let Some(s) = value {
                     let label = format!("[[keyframe]] render.{name}.{key}");
-                    if let Some(t) = self.value_at(&label, *s.get_ref(), s.span()) {
+                    // in the units of the volume the pass reads
+                    let saved = (self.units, self.window);
+                    if let Some(&(units, window)) = self.contexts.get(passes[p].volumes[0]) {
+                        (self.units, self.window) = (units, window);
+                    }
+                    let t = self.value_at(&label, *s.get_ref(), s.span());
+                    (self.units, self.window) = saved;
+                    if let Some(t) = t {
                         pass_keys.entry(p).or_default().push((frame, t));
                     }
                 }

@@ -36,6 +36,10 @@ struct Resolver<'a> {
     /// Each volume's units and window, in the order of the scene's volumes: a
     /// pass's values are written in its volume's.
     contexts: Vec<(Units, Option<[f64; 2]>)>,
+    /// Transfer functions resolved per (name, volume context), where the volumes
+    /// have units of their own: each table is read in the units of the volumes
+    /// whose passes use it.
+    transfer_cache: std::collections::BTreeMap<(String, usize), Option<super::Transfer>>,
 }
 
 pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
@@ -56,6 +60,7 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         units: Units::Normalised,
         window: None,
         contexts: Vec::new(),
+        transfer_cache: Default::default(),
     };
     let name = path
         .file_stem()
@@ -79,7 +84,11 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         .is_some_and(|v| r.viewer(v, image.format));
     let light = r.light(file.light.as_ref());
     let materials = r.materials(&file.material);
-    let transfers = r.transfers(&file.transfer);
+    // with volumes of several units, each table is read in the units of the
+    // volumes that use it (when a pass does), not once in the first volume's
+    let lazy = r.contexts.iter().any(|c| Some(c) != r.contexts.first());
+    let no_tables = Default::default();
+    let transfers = r.transfers(if lazy { &no_tables } else { &file.transfer });
     let passes = r.passes(
         file.render.as_deref(),
         &materials,
@@ -87,6 +96,14 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
         &file.transfer,
         &volumes,
     );
+    if lazy {
+        // the tables no pass read: checked in the first volume's units
+        for (name, t) in &file.transfer {
+            if !r.transfer_cache.keys().any(|(n, _)| n == name) {
+                let _ = r.transfer(name, t);
+            }
+        }
+    }
     let clips = r.clips(file.clip.as_deref(), &passes);
     let keyframes = r.keyframes(
         file.keyframe.as_deref(),
@@ -106,6 +123,8 @@ pub fn resolve(text: &str, path: &Path) -> Result<Scene, SceneError> {
     }));
     if !diags.is_empty() {
         diags.sort_by_key(|d| d.span.as_ref().map_or(0, |s| s.start));
+        // (a table read for several volumes reports each problem once)
+        diags.dedup_by(|a, b| a.span == b.span && a.message == b.message);
         return Err(fail(diags));
     }
     Ok(Scene {

@@ -658,12 +658,18 @@ impl PassKeys<'_, '_, '_> {
     fn transfer_for(&mut self, k: usize, name: &str, span: Range<usize>) -> Option<Transfer> {
         let r = &mut *self.resolver;
         let own = r.contexts.get(k).copied();
-        let first = r.contexts.first().copied();
-        if own == first {
+        // the first volume with the same units and window
+        let context = r.contexts.iter().position(|c| Some(*c) == own).unwrap_or(0);
+        let table = self.scene.transfer_tables.get(name);
+        let lazy = table.is_some() && !self.transfers.contains_key(name);
+        if own == r.contexts.first().copied() && !lazy {
             return match self.transfers.get(name) {
                 Some(tf) => Some(tf.clone()),
                 None => r.preset(name, self.transfers, span),
             };
+        }
+        if let Some(tf) = r.transfer_cache.get(&(name.to_string(), context)) {
+            return tf.clone();
         }
         let saved = (r.units, r.window);
         if let Some((units, window)) = own {
@@ -671,14 +677,19 @@ impl PassKeys<'_, '_, '_> {
             r.window = window;
         }
         let before = r.diags.len();
-        let tf = match self.scene.transfer_tables.get(name) {
+        let tf = match table {
             Some(table) => r.transfer(name, table),
             None if self.transfers.contains_key(name) => self.transfers.get(name).cloned(),
             None => r.preset(name, self.transfers, span),
         };
+        r.transfer_cache
+            .insert((name.to_string(), context), tf.clone());
+        let several = r.contexts.iter().any(|c| Some(c) != r.contexts.first());
         let volume = &self.scene.volumes[k].name;
-        for d in &mut r.diags[before..] {
-            d.message = format!("for volume `{volume}`: {}", d.message);
+        if several {
+            for d in &mut r.diags[before..] {
+                d.message = format!("for volume `{volume}`: {}", d.message);
+            }
         }
         (r.units, r.window) = saved;
         tf
