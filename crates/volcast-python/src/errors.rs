@@ -3,7 +3,7 @@
 //! volume), `volcast.VolcastError` (its base: volumes that cannot be read, outputs
 //! that cannot be written), `KeyboardInterrupt` for a cancelled run.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyKeyboardInterrupt};
@@ -47,7 +47,7 @@ pub fn scene(py: Python<'_>, e: &RsSceneError, label: Option<&str>) -> PyErr {
     if let Some(l) = label {
         e.path = PathBuf::from(l);
     }
-    let file = crate::scene::shown_path(&e.path, label);
+    let file = shown_path(&e.path, label);
     let err = SceneError::new_err(e.to_string());
     let problems = PyList::empty(py);
     let mut first: Option<(Option<usize>, Option<usize>, Option<String>)> = None;
@@ -55,7 +55,7 @@ pub fn scene(py: Python<'_>, e: &RsSceneError, label: Option<&str>) -> PyErr {
         let (line, column, key) = match &d.span {
             Some(span) if !e.text.is_empty() => {
                 let (l, c) = e.line_col(span.start);
-                (Some(l), Some(c), crate::scene::key_at(&e.text, span.start))
+                (Some(l), Some(c), key_at(&e.text, span.start))
             }
             _ => (None, None, None),
         };
@@ -96,7 +96,7 @@ pub fn run(py: Python<'_>, e: &volcast::Error, label: Option<&str>) -> PyErr {
     match e {
         volcast::Error::Scene(s) => scene(py, s, label),
         volcast::Error::Plan { scene, message } => {
-            let file = crate::scene::shown_path(scene, label);
+            let file = shown_path(scene, label);
             let err = SceneError::new_err(format!("{file}: {message}"));
             let problems = PyList::empty(py);
             let p = PyDict::new(py);
@@ -112,4 +112,70 @@ pub fn run(py: Python<'_>, e: &volcast::Error, label: Option<&str>) -> PyErr {
         volcast::Error::Cancelled => PyKeyboardInterrupt::new_err("the render was cancelled"),
         other => VolcastError::new_err(chain(other)),
     }
+}
+
+/// The key a byte offset of a scene's text belongs to: `table.key` from the last
+/// table header above it and the `key =` of its line (`render[1].mode` for the
+/// second `[[render]]`), or what of that is known.
+pub fn key_at(text: &str, offset: usize) -> Option<String> {
+    let offset = offset.min(text.len());
+    let start = text[..offset].rfind('\n').map_or(0, |i| i + 1);
+    let line = text[start..].lines().next().unwrap_or("");
+    let key = line
+        .split_once('=')
+        .map(|(k, _)| k.trim())
+        .filter(|k| !k.is_empty() && !k.starts_with('[') && !k.starts_with('#'))
+        .map(|k| k.replace(['"', ' '], ""));
+    let mut table: Option<String> = None;
+    let mut counts: std::collections::HashMap<String, usize> = Default::default();
+    for l in text[..start].lines() {
+        let l = l.trim();
+        if let Some(name) = l
+            .strip_prefix("[[")
+            .and_then(|r| r.split_once("]]"))
+            .map(|r| r.0)
+        {
+            let name = name.trim().replace(['"', ' '], "");
+            let n = counts.entry(name.clone()).or_insert(0);
+            table = Some(format!("{name}[{n}]"));
+            *n += 1;
+        } else if let Some(name) = l
+            .strip_prefix('[')
+            .and_then(|r| r.split_once(']'))
+            .map(|r| r.0)
+        {
+            table = Some(name.trim().replace(['"', ' '], ""));
+        }
+    }
+    // a header line itself names its table
+    if key.is_none() {
+        let l = line.trim();
+        if let Some(name) = l
+            .strip_prefix("[[")
+            .and_then(|r| r.split_once("]]"))
+            .map(|r| r.0)
+        {
+            let name = name.trim().replace(['"', ' '], "");
+            let n = counts.get(&name).copied().unwrap_or(0);
+            return Some(format!("{name}[{n}]"));
+        }
+        if let Some(name) = l
+            .strip_prefix('[')
+            .and_then(|r| r.split_once(']'))
+            .map(|r| r.0)
+        {
+            return Some(name.trim().replace(['"', ' '], ""));
+        }
+    }
+    match (table, key) {
+        (Some(t), Some(k)) => Some(format!("{t}.{k}")),
+        (None, Some(k)) => Some(k),
+        (Some(t), None) => Some(t),
+        (None, None) => None,
+    }
+}
+
+/// The file a scene error names in Python: the scene file, or `<dict>`/`<string>`.
+pub fn shown_path(path: &Path, label: Option<&str>) -> String {
+    label.map_or_else(|| path.display().to_string(), str::to_string)
 }

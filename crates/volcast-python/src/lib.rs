@@ -162,7 +162,7 @@ fn check(py: Python<'_>, scene: &Bound<'_, PyAny>, volume: Option<ArraySpec>) ->
             serde_json::json!({ "name": p.name, "mode": p.mode, "files": files })
         })
         .collect();
-    let file = scene::shown_path(&scene.path, label);
+    let file = errors::shown_path(&scene.path, label);
     // each volume as the plan places it (the first also as `volume`)
     let volumes: Vec<serde_json::Value> = plan
         .volumes

@@ -2,7 +2,7 @@
 //! scene errors as `volcast.SceneError` with the file, line, column and key of
 //! the first problem.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -190,70 +190,4 @@ fn value_of(v: &Bound<'_, PyAny>, what: &str) -> PyResult<toml::Value> {
         "{what}: {} is not a TOML value (bool, int, float, str, list, dict)",
         v.get_type().name()?
     )))
-}
-
-/// The key a byte offset of a scene's text belongs to: `table.key` from the last
-/// table header above it and the `key =` of its line (`render[1].mode` for the
-/// second `[[render]]`), or what of that is known.
-pub fn key_at(text: &str, offset: usize) -> Option<String> {
-    let offset = offset.min(text.len());
-    let start = text[..offset].rfind('\n').map_or(0, |i| i + 1);
-    let line = text[start..].lines().next().unwrap_or("");
-    let key = line
-        .split_once('=')
-        .map(|(k, _)| k.trim())
-        .filter(|k| !k.is_empty() && !k.starts_with('[') && !k.starts_with('#'))
-        .map(|k| k.replace(['"', ' '], ""));
-    let mut table: Option<String> = None;
-    let mut counts: std::collections::HashMap<String, usize> = Default::default();
-    for l in text[..start].lines() {
-        let l = l.trim();
-        if let Some(name) = l
-            .strip_prefix("[[")
-            .and_then(|r| r.split_once("]]"))
-            .map(|r| r.0)
-        {
-            let name = name.trim().replace(['"', ' '], "");
-            let n = counts.entry(name.clone()).or_insert(0);
-            table = Some(format!("{name}[{n}]"));
-            *n += 1;
-        } else if let Some(name) = l
-            .strip_prefix('[')
-            .and_then(|r| r.split_once(']'))
-            .map(|r| r.0)
-        {
-            table = Some(name.trim().replace(['"', ' '], ""));
-        }
-    }
-    // a header line itself names its table
-    if key.is_none() {
-        let l = line.trim();
-        if let Some(name) = l
-            .strip_prefix("[[")
-            .and_then(|r| r.split_once("]]"))
-            .map(|r| r.0)
-        {
-            let name = name.trim().replace(['"', ' '], "");
-            let n = counts.get(&name).copied().unwrap_or(0);
-            return Some(format!("{name}[{n}]"));
-        }
-        if let Some(name) = l
-            .strip_prefix('[')
-            .and_then(|r| r.split_once(']'))
-            .map(|r| r.0)
-        {
-            return Some(name.trim().replace(['"', ' '], ""));
-        }
-    }
-    match (table, key) {
-        (Some(t), Some(k)) => Some(format!("{t}.{k}")),
-        (None, Some(k)) => Some(k),
-        (Some(t), None) => Some(t),
-        (None, None) => None,
-    }
-}
-
-/// The file a scene error names in Python: the scene file, or `<dict>`/`<string>`.
-pub fn shown_path(path: &Path, label: Option<&str>) -> String {
-    label.map_or_else(|| path.display().to_string(), str::to_string)
 }

@@ -734,10 +734,8 @@ impl Plan {
         if self.volumes.len() > 1 && rp.parts().is_empty() {
             needs.push(format!("reads volume `{}`", self.volumes[rp.volume()].name));
         }
-        if rp.parts().is_empty() {
-            needs.extend(rp.describe(self.volumes[rp.volume()].header.sizes));
-        } else {
-            needs.extend(rp.describe(self.volumes[rp.volume()].header.sizes));
+        needs.extend(rp.describe(self.volumes[rp.volume()].header.sizes));
+        if !rp.parts().is_empty() {
             let names: Vec<String> = p
                 .volumes
                 .iter()
