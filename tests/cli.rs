@@ -292,9 +292,22 @@ fn bench_speed_quick_measures_every_mode() {
             && md.contains("median of 2 runs (the thread counts interleaved)"),
         "{md}"
     );
+    // and the composites of several volumes, on the synthetic field
+    for case in [
+        "composite (gaussian alone)",
+        "composite of 2 volumes",
+        "composite (dense transfer function)",
+        "composite of 2, overlapping",
+    ] {
+        assert!(
+            md.contains(&format!("| blobs 64^3 uint8 | {case} |")),
+            "{case} missing:\n{md}"
+        );
+    }
     let csv = std::fs::read_to_string(tmp.path().join("speed.csv")).unwrap();
-    // a header and 2 volumes x 8 modes x 2 thread counts
-    assert_eq!(csv.lines().count(), 1 + 2 * 8 * 2, "{csv}");
+    // a header and 2 volumes x 8 modes x 2 thread counts, and 4 blend cases x 2 on
+    // the synthetic field
+    assert_eq!(csv.lines().count(), 1 + 2 * 8 * 2 + 4 * 2, "{csv}");
     // skipping skips on the blobs (air around them), and never takes more than the march
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(tmp.path().join("speed.json")).unwrap())
