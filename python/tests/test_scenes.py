@@ -20,12 +20,13 @@ SCENES = sorted((ROOT / "scenes").glob("*.toml"))
 
 
 def shrunk(path):
-    """The scene of `path` as a dict, at 40 x 32 pixels and 2 frames, its volume path
-    absolute."""
+    """The scene of `path` as a dict, at 40 x 32 pixels and 2 frames, its volume paths
+    absolute (of `[volume]`, or of each `[[volume]]`)."""
     scene = tomllib.loads(path.read_text())
     vol = scene.get("volume", {})
-    if "path" in vol:
-        vol["path"] = str((path.parent / vol["path"]).resolve())
+    for v in vol if isinstance(vol, list) else [vol]:
+        if "path" in v:
+            v["path"] = str((path.parent / v["path"]).resolve())
     scene.setdefault("image", {})["size"] = [40, 32]
     scene["image"].pop("width", None)
     scene["image"].pop("height", None)
