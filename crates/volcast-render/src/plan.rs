@@ -745,21 +745,13 @@ impl Plan {
                 "blends volumes {} at each sample: opacity 1 - prod(1 - a_i), colour sum(a_i c_i) / sum(a_i); each shaded with its own gradient",
                 names.join(", ")
             ));
-            let transfers = p.mode.manifest();
-            let tf_names: Vec<String> = transfers
-                .get("transfers")
-                .and_then(|t| t.as_array())
-                .map(|a| {
-                    a.iter()
-                        .filter_map(|x| x.as_str().map(String::from))
-                        .collect()
-                })
-                .unwrap_or_default();
             for (i, (k, part)) in rp.parts().iter().enumerate() {
                 let v = &self.volumes[*k];
-                let tf = tf_names
-                    .get(i)
-                    .map_or(String::new(), |n| format!(" through `{n}`"));
+                let tf = p
+                    .mode
+                    .part(i)
+                    .and_then(|m| m.transfer().map(|(n, _)| format!(" through `{n}`")))
+                    .unwrap_or_default();
                 let what = part.describe(v.header.sizes).join("; ");
                 needs.push(format!("volume `{}`{tf}: {what}", v.name));
             }

@@ -194,7 +194,8 @@ impl Blend<'_> {
             if a > b {
                 continue;
             }
-            counts.nominal += march_samples(&mids, a, b);
+            let (from_box, to_box) = within(&mids, a, b);
+            counts.nominal += to_box.saturating_sub(from_box) as u64;
             // the part its cells that are not transparent can lie in
             let (wa, wb) = match windows.get(k).and_then(|w| w.as_ref()) {
                 Some(w) => {
@@ -206,11 +207,7 @@ impl Blend<'_> {
             if wa > wb {
                 continue;
             }
-            let first = mids.first_at_or_after(wa);
-            let mut end = mids.first_at_or_after(wb);
-            while end < n && mids.t(end) <= wb {
-                end += 1;
-            }
+            let (first, end) = within(&mids, wa, wb);
             if first >= end {
                 continue;
             }
@@ -302,15 +299,15 @@ impl Blend<'_> {
     }
 }
 
-/// The midpoints of `mids` in `[a, b]`.
-fn march_samples(mids: &Midpoints<'_>, a: f64, b: f64) -> u64 {
+/// The indices `first..end` of the midpoints of `mids` in `[a, b]`.
+fn within(mids: &Midpoints<'_>, a: f64, b: f64) -> (usize, usize) {
     let n = mids.len();
     let first = mids.first_at_or_after(a);
     let mut end = mids.first_at_or_after(b);
     while end < n && mids.t(end) <= b {
         end += 1;
     }
-    end.saturating_sub(first) as u64
+    (first, end)
 }
 
 /// The colour and opacity of a sample from its volumes' `terms` (each with an
